@@ -1,0 +1,256 @@
+// dhfcast command line: parses options, runs the stages in order, shows progress, maps errors to
+// messages and exit codes.
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <oneapi/tbb/global_control.h>
+#include <string>
+
+#include "dhfcast/check.h"
+#include "dhfcast/error.h"
+#include "dhfcast/mesh.h"
+#include "dhfcast/pipeline.h"
+#include "dhfcast/report.h"
+
+using namespace dhfcast;
+
+namespace {
+
+enum ExitCode { kOk = 0, kFailure = 1, kUsage = 2, kBadInput = 3, kIo = 4, kCheckFailed = 5 };
+
+int exit_code(ErrorCode code) {
+  switch (code) {
+    case ErrorCode::InvalidInput: return kBadInput;
+    case ErrorCode::InvalidOptions: return kUsage;
+    case ErrorCode::Io: return kIo;
+    default: return kFailure;
+  }
+}
+
+using Clock = std::chrono::steady_clock;
+
+// Stage progress on stderr: one line per stage; on a terminal, a live percentage.
+class ProgressPrinter {
+ public:
+  explicit ProgressPrinter(bool quiet) : quiet_(quiet), tty_(::isatty(STDERR_FILENO)) {}
+  void operator()(const std::string& stage, double f) {
+    if (quiet_) return;
+    if (f <= 0.0) {
+      stage_start_ = Clock::now();
+      last_percent_ = -1;
+      if (tty_) std::fprintf(stderr, "  %-15s   0%%", stage.c_str());
+      return;
+    }
+    if (f >= 1.0) {
+      const double s = std::chrono::duration<double>(Clock::now() - stage_start_).count();
+      std::fprintf(stderr, "%s  %-15s done in %.1f s\n", tty_ ? "\r" : "", stage.c_str(), s);
+      return;
+    }
+    const int percent = static_cast<int>(f * 100);
+    const int step = tty_ ? 1 : 25;  // logs get a few lines, terminals a live counter
+    if (percent / step == last_percent_ / step) return;
+    last_percent_ = percent;
+    if (tty_)
+      std::fprintf(stderr, "\r  %-15s %3d%%", stage.c_str(), percent);
+    else
+      std::fprintf(stderr, "  %-15s %3d%%\n", stage.c_str(), percent);
+  }
+
+ private:
+  bool quiet_, tty_;
+  Clock::time_point stage_start_;
+  int last_percent_ = -1;
+};
+
+struct CliOptions {
+  std::string input, outdir;
+  double scale = 1.0;
+  std::string units = "mm";
+  int threads = 0;
+  bool quiet = false, force = false;
+  DecomposeOptions decompose;
+};
+
+int run_decompose(const CliOptions& cli) {
+  const auto t_start = Clock::now();
+  std::unique_ptr<oneapi::tbb::global_control> threads;
+  if (cli.threads > 0)
+    threads = std::make_unique<oneapi::tbb::global_control>(
+        oneapi::tbb::global_control::max_allowed_parallelism, cli.threads);
+
+  validate_options(cli.decompose);
+  check_output_location(cli.outdir, cli.force);
+
+  const std::map<std::string, double> units = {{"mm", 1.0}, {"cm", 10.0}, {"m", 1000.0},
+                                               {"in", 25.4}};
+  LoadOptions load;
+  load.scale = cli.scale;
+  load.units_to_mm = units.at(cli.units);
+  const LoadedSolid solid = load_solid(cli.input, load);
+  const double load_s = std::chrono::duration<double>(Clock::now() - t_start).count();
+  const Box3 bbox = bounding_box(solid.mesh.vertices);
+  const Vec3 size = bbox.max - bbox.min;
+  if (!cli.quiet) {
+    std::fprintf(stderr, "dhfcast: %s: %zu triangles, %.1f x %.1f x %.1f mm, %.0f mm3%s\n",
+                 cli.input.c_str(), solid.mesh.triangles.size(), size.x(), size.y(), size.z(),
+                 signed_volume(solid.mesh),
+                 solid.flipped ? " (was inside out: flipped)" : "");
+  }
+
+  ProgressPrinter printer(cli.quiet);
+  const Decomposition d = decompose(solid.mesh, cli.decompose, std::ref(printer));
+
+  InputInfo info{cli.input, static_cast<std::int64_t>(solid.mesh.triangles.size()),
+                 signed_volume(solid.mesh), bbox, solid.flipped};
+  const double total_s = std::chrono::duration<double>(Clock::now() - t_start).count();
+  write_output(cli.outdir, decomposition_json(info, cli.decompose, d, load_s, total_s), d,
+               cli.force);
+
+  if (!d.assembly.found)
+    std::fprintf(stderr, "dhfcast: warning: %s\n", d.assembly.message.c_str());
+  for (const InaccessibleRegion& r : d.inaccessible_regions)
+    std::fprintf(stderr,
+                 "dhfcast: note: %d tets (%.1f mm3) are accessible from no direction; that "
+                 "region was decomposed on its own%s\n",
+                 r.tets, r.volume_mm3,
+                 r.still_inaccessible_tets ? " (some tets merged into a neighbour part)" : "");
+  if (!cli.quiet) {
+    std::fprintf(stderr, "dhfcast: %zu parts from %zu tets, written to %s\n", d.parts.size(),
+                 d.tets.tets.size(), cli.outdir.c_str());
+    for (const Part& p : d.parts)
+      std::fprintf(stderr, "  part %3d  direction (%+.3f, %+.3f, %+.3f)  %10.1f mm3\n", p.id,
+                   p.direction.x(), p.direction.y(), p.direction.z(), p.volume_mm3);
+    std::string order;
+    for (std::int32_t id : d.assembly.order) order += " " + std::to_string(id);
+    std::fprintf(stderr, "  assembly order:%s%s\n", order.c_str(),
+                 d.assembly.found ? "" : " (not collision-free)");
+    std::fprintf(stderr,
+                 "  time: load %.1f s, tetrahedralize %.1f s, accessibility %.1f s, "
+                 "segmentation %.1f s, parts %.1f s, total %.1f s\n",
+                 load_s, d.timings.tetrahedralize, d.timings.accessibility,
+                 d.timings.segmentation, d.timings.parts, total_s);
+  }
+  return kOk;
+}
+
+int run_check(const CheckOptions& opts, bool json) {
+  const CheckReport report = check_output(opts);
+  std::fputs((json ? format_json(report) : format_text(report)).c_str(), stdout);
+  return report.passed() ? kOk : kCheckFailed;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"dhfcast: split a closed 3D model into parts that each cast in a two-piece "
+               "rigid mold"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "dhfcast 0.1.0");
+
+  CliOptions cli;
+  DecomposeOptions& o = cli.decompose;
+  CLI::App* dec = app.add_subcommand(
+      "decompose", "Split INPUT into double-height-field parts and write them to OUTDIR");
+  dec->add_option("input", cli.input, "Closed triangle mesh: .stl, .obj, .ply or .off")
+      ->required();
+  dec->add_option("-o,--output", cli.outdir, "Output folder (must not exist unless --force)")
+      ->required();
+  dec->add_option("--epsilon", o.access.epsilon_mm, "Undercut tolerance in mm")
+      ->capture_default_str();
+  dec->add_option("--directions", o.directions, "Number of candidate directions")
+      ->capture_default_str();
+  dec->add_option("--tets", o.tets.target_tets, "Target number of tetrahedra")
+      ->capture_default_str();
+  dec->add_option("--facet-distance", o.tets.facet_distance_mm,
+                  "Max distance of the tet mesh boundary from the surface, mm")
+      ->capture_default_str();
+  dec->add_option("--alpha", o.segment.alpha, "Data cost weight")->capture_default_str();
+  dec->add_option("--c", o.segment.c_mm, "Data cost width in mm")->capture_default_str();
+  dec->add_option("--beta", o.segment.beta_mm, "Smoothness weight in mm")->capture_default_str();
+  dec->add_option("--lambda", o.segment.lambda, "Label cost weight")->capture_default_str();
+  dec->add_option("--restarts", o.segment.restarts, "Randomized graph-cut runs")
+      ->capture_default_str();
+  dec->add_option("--seed", o.segment.seed, "Random seed")->capture_default_str();
+  dec->add_option("--scale", cli.scale, "Multiply the input's coordinates by this")
+      ->capture_default_str();
+  dec->add_option("--units", cli.units, "Units of the input file")
+      ->check(CLI::IsMember({"mm", "cm", "m", "in"}))
+      ->capture_default_str();
+  dec->add_option("--threads", cli.threads, "Worker threads (0: all cores)")
+      ->check(CLI::NonNegativeNumber);
+  dec->add_flag("-q,--quiet", cli.quiet, "Print only errors and warnings");
+  dec->add_flag("-f,--force", cli.force, "Replace OUTDIR if it exists");
+
+  CheckOptions check_opts;
+  bool check_json = false;
+  CLI::App* chk = app.add_subcommand(
+      "check", "Verify an output folder independently: contract, solids, coverage, DHF, "
+               "assembly, molds, fidelity");
+  chk->add_option("outdir", check_opts.outdir, "Folder written by dhfcast decompose")->required();
+  chk->add_option("--input", check_opts.input_mesh,
+                  "The decomposed mesh (mm): enables the gap, outside and fidelity figures");
+  chk->add_flag("--json", check_json, "Print all figures as JSON");
+  chk->add_option("--epsilon", check_opts.epsilon_mm, "Undercut / contact tolerance in mm")
+      ->capture_default_str();
+  chk->add_option("--max-volume-error", check_opts.max_volume_error,
+                  "Allowed |sum of part volumes - input volume| / input volume")
+      ->capture_default_str();
+  chk->add_option("--max-overlap", check_opts.max_overlap_fraction,
+                  "Allowed volume inside two or more parts, fraction of the input")
+      ->capture_default_str();
+  chk->add_option("--max-gap", check_opts.max_gap_fraction,
+                  "Allowed input volume inside no part, fraction")
+      ->capture_default_str();
+  chk->add_option("--max-outside", check_opts.max_outside_fraction,
+                  "Allowed part volume outside the input, fraction")
+      ->capture_default_str();
+  chk->add_option("--max-dhf-violations", check_opts.max_dhf_violation_fraction,
+                  "Allowed fraction of lines along d meeting a part in several intervals")
+      ->capture_default_str();
+  chk->add_option("--min-mold-coverage", check_opts.min_mold_surface_coverage,
+                  "Required fraction of the part surface covered by the mold halves")
+      ->capture_default_str();
+  chk->add_option("--max-fidelity", check_opts.max_fidelity_p99_rel,
+                  "Allowed 99th-percentile surface distance, fraction of the bbox diagonal")
+      ->capture_default_str();
+  chk->add_option("--seed", check_opts.seed, "Seed of the sampling")->capture_default_str();
+  int check_threads = 0;
+  chk->add_option("--threads", check_threads, "Worker threads (0: all cores)")
+      ->check(CLI::NonNegativeNumber);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? kOk : kUsage;
+  }
+
+  try {
+    if (dec->parsed()) {
+      o.tets.seed = o.segment.seed;
+      return run_decompose(cli);
+    }
+    if (chk->parsed()) {
+      std::unique_ptr<oneapi::tbb::global_control> threads;
+      if (check_threads > 0)
+        threads = std::make_unique<oneapi::tbb::global_control>(
+            oneapi::tbb::global_control::max_allowed_parallelism, check_threads);
+      return run_check(check_opts, check_json);
+    }
+  } catch (const Error& e) {
+    std::fprintf(stderr, "dhfcast: error: %s\n", e.what());
+    return exit_code(e.code());
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "dhfcast: error: out of memory (try fewer --tets)\n");
+    return kFailure;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "dhfcast: error: internal: %s\n", e.what());
+    return kFailure;
+  }
+  return kUsage;
+}

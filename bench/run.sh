@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# Runs `dhfcast decompose` on the extended models and prints one table: model, triangles, tets,
+# seconds per stage (median of RUNS runs), parts, beside the paper's Table 1.
+#
+#   bench/run.sh [--runs N] [--tets N] [--models "bunny armadillo ..."] [--build DIR]
+#
+# Models are read from $DHFCAST_MODELS_DIR (default: ../shared/models beside the repository).
+set -euo pipefail
+here="$(cd "$(dirname "$0")/.." && pwd)"
+runs=3
+tets=""
+build="$here/build"
+models_dir="${DHFCAST_MODELS_DIR:-$here/../shared/models}"
+models="bunny armadillo elephant fertility duck bimba doubletorus dragonstand fandisk rockerarm pinion mastercylinder joint wrench teacup vase"
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --runs) runs="$2"; shift 2 ;;
+    --tets) tets="$2"; shift 2 ;;
+    --models) models="$2"; shift 2 ;;
+    --build) build="$2"; shift 2 ;;
+    *) echo "usage: bench/run.sh [--runs N] [--tets N] [--models LIST] [--build DIR]" >&2; exit 2 ;;
+  esac
+done
+[ -d "$models_dir" ] || { echo "bench: no models folder at $models_dir (set DHFCAST_MODELS_DIR)" >&2; exit 2; }
+[ -x "$build/dhfcast" ] || { echo "bench: build first (cmake --build $build)" >&2; exit 2; }
+
+# Paper's Table 1: tets, DHF s, solve s, partsgen s, parts.
+declare -A paper=(
+  [bunny]="82234 156 611 130 4" [armadillo]="57681 123 331 124 6" [elephant]="50589 114 264 273 7"
+  [fertility]="24215 41 147 104 2" [duck]="94056 157 1911 189 2" [bimba]="59077 236 329 209 5"
+  [doubletorus]="19527 28 45 5 1" [dragonstand]="75500 203 484 355 7")
+
+tmp="$(mktemp -d)"
+trap 'rm -rf "$tmp"' EXIT
+printf '%-15s %7s %7s %6s %6s %6s %6s %6s %6s %5s | %7s %5s %5s %5s %5s\n' \
+  model tris tets load tets_s access segm parts total parts p.tets p.DHF p.sol p.prt p.#
+for m in $models; do
+  f="$models_dir/$m.stl"
+  [ -f "$f" ] || { echo "bench: skip $m (no $f)" >&2; continue; }
+  target="${tets:-${paper[$m]%% *}}"
+  case "$target" in ''|*[!0-9]*) target=50000 ;; esac
+  for r in $(seq "$runs"); do
+    "$build/dhfcast" decompose "$f" -o "$tmp/$m-$r" --tets "$target" --quiet --force
+  done
+  /usr/bin/python3 - "$m" "$tmp" "$runs" "${paper[$m]:-- - - - -}" <<'PY'
+import json, statistics, sys
+m, tmp, runs, paper = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4].split()
+docs = [json.load(open(f"{tmp}/{m}-{r}/decomposition.json")) for r in range(1, runs + 1)]
+med = lambda k: statistics.median(d["timings_s"][k] for d in docs)
+d = docs[0]
+print(f"{m:<15} {d['input']['triangles']:7d} {d['tetrahedra']:7d} {med('load'):6.1f} "
+      f"{med('tetrahedralize'):6.1f} {med('accessibility'):6.1f} {med('segmentation'):6.1f} "
+      f"{med('parts'):6.1f} {med('total'):6.1f} {len(d['parts']):5d} | "
+      + " ".join(f"{x:>5}" for x in paper))
+PY
+done

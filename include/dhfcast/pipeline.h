@@ -1,0 +1,64 @@
+// The whole decomposition: tetrahedralize, accessibility, segmentation, parts, assembly order.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "dhfcast/access.h"
+#include "dhfcast/parts.h"
+#include "dhfcast/segment.h"
+#include "dhfcast/tets.h"
+#include "dhfcast/types.h"
+
+namespace dhfcast {
+
+// Every parameter of decompose(). Defaults are the paper's.
+struct DecomposeOptions {
+  TetOptions tets;
+  std::int32_t directions = 512;  // number of candidate directions
+  AccessibilityOptions access;
+  SegmentOptions segment;
+};
+
+// Wall-clock seconds per stage.
+struct StageTimes {
+  double tetrahedralize = 0, accessibility = 0, segmentation = 0, parts = 0;
+};
+
+// A tet region that was feasible for no direction and was decomposed again on its own.
+struct InaccessibleRegion {
+  std::int32_t id = 0;         // its region number (Part::region)
+  std::int32_t tets = 0;       // tets in it
+  double volume_mm3 = 0.0;
+  std::int32_t still_inaccessible_tets = 0;  // tets still feasible for no direction of the
+                                             // region's own surface; merged into a neighbour
+};
+
+// The result of decompose().
+struct Decomposition {
+  TetMesh tets;
+  std::vector<Vec3> directions;
+  AccessibilityField access;         // of the whole solid
+  Labeling labeling;                 // of the whole solid (label -1: inaccessible)
+  std::vector<InaccessibleRegion> inaccessible_regions;
+  std::vector<Part> parts;
+  AssemblyPlan assembly;
+  double assembly_tolerance_mm = 0.0;  // penetration depth below which parts do not block
+  StageTimes timings;
+};
+
+// Called when a stage starts (fraction 0), as it progresses, and when it ends (fraction 1).
+using StageProgress = std::function<void(const std::string& stage, double fraction)>;
+
+// Decomposes the solid bounded by `solid` into DHF parts and orders them for assembly.
+// Pre: `solid` passes validate_mesh() and is outward oriented (load_solid() gives such meshes).
+// Throws Error{InvalidOptions} for out-of-range options, and what the stages throw.
+Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts = {},
+                        const StageProgress& progress = {});
+
+// Checks every option; throws Error{InvalidOptions} naming the first bad one.
+void validate_options(const DecomposeOptions& opts);
+
+}  // namespace dhfcast

@@ -1,0 +1,39 @@
+// The output folder: decomposition.json and the part meshes, written atomically.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "dhfcast/pipeline.h"
+#include "dhfcast/types.h"
+
+namespace dhfcast {
+
+// What is recorded about the input.
+struct InputInfo {
+  std::string path;
+  std::int64_t triangles = 0;
+  double volume_mm3 = 0.0;
+  Box3 bbox;
+  bool flipped = false;  // it was inward oriented and was flipped
+};
+
+// decomposition.json as text (format "dhfcast-decomposition", version 1; see README.md).
+// With include_timings == false the "timings_s" object is left out, so two runs can be
+// compared byte for byte.
+std::string decomposition_json(const InputInfo& input, const DecomposeOptions& opts,
+                               const Decomposition& d, double load_s, double total_s,
+                               bool include_timings = true);
+
+// Writes decomposition.json and parts/part_NNN.stl into `outdir`: everything goes to a
+// temporary folder beside it, renamed to `outdir` at the end, so a failure leaves no
+// half-written output. An existing `outdir` is replaced only when `replace` is true.
+// Throws Error{Io}.
+void write_output(const std::string& outdir, const std::string& json, const Decomposition& d,
+                  bool replace);
+
+// Throws Error{Io} when `outdir` cannot be written later: it exists and `replace` is false, or
+// its parent folder does not exist. Lets the CLI fail before the long computation.
+void check_output_location(const std::string& outdir, bool replace);
+
+}  // namespace dhfcast

@@ -1,0 +1,146 @@
+#include "ray_scene.h"
+
+#include <embree3/rtcore.h>
+
+#include <limits>
+
+#include "dhfcast/error.h"
+
+namespace dhfcast::detail {
+
+namespace {
+
+// Closest point on triangle abc to p (Ericson, Real-Time Collision Detection, 5.1.5).
+Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return a;
+  const Vec3 bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return b;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + ab * (d1 / (d1 - d3));
+  const Vec3 cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return c;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + ac * (d2 / (d2 - d6));
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
+    return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+  const double denom = 1.0 / (va + vb + vc);
+  return a + ab * (vb * denom) + ac * (vc * denom);
+}
+
+struct DistanceQuery {
+  const TriMesh* mesh;
+  Vec3 p;
+  double best;
+  bool any;  // stop at the first triangle closer than the radius
+};
+
+bool shrink_to_triangle(RTCPointQueryFunctionArguments* args) {
+  auto* q = static_cast<DistanceQuery*>(args->userPtr);
+  const Tri& tri = q->mesh->triangles[args->primID];
+  const Vec3& v = q->mesh->vertices[tri[0]];
+  const double d =
+      (closest_on_triangle(q->p, v, q->mesh->vertices[tri[1]], q->mesh->vertices[tri[2]]) - q->p)
+          .norm();
+  if (d >= q->best) return false;
+  q->best = d;
+  args->query->radius = q->any ? 0.0f : static_cast<float>(d);
+  return true;
+}
+
+RTCRay make_ray(const Vec3& origin, const Vec3& dir) {
+  RTCRay ray;
+  ray.org_x = static_cast<float>(origin.x());
+  ray.org_y = static_cast<float>(origin.y());
+  ray.org_z = static_cast<float>(origin.z());
+  ray.dir_x = static_cast<float>(dir.x());
+  ray.dir_y = static_cast<float>(dir.y());
+  ray.dir_z = static_cast<float>(dir.z());
+  ray.tnear = 0.0f;
+  ray.tfar = std::numeric_limits<float>::infinity();
+  ray.time = 0.0f;
+  ray.mask = 0xFFFFFFFFu;  // Debian's Embree is built with ray masks: 0 would hit nothing
+  ray.id = 0;
+  ray.flags = 0;
+  return ray;
+}
+
+}  // namespace
+
+struct RayScene::Impl {
+  RTCDevice device = nullptr;
+  RTCScene scene = nullptr;
+  TriMesh mesh;  // the surface, for exact distances
+};
+
+RayScene::RayScene(const TriMesh& surface) : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  m.mesh = surface;
+  diagonal_mm_ = bounding_box(surface.vertices).diagonal();
+
+  m.device = rtcNewDevice(nullptr);
+  if (!m.device) throw Error(ErrorCode::Internal, "access: cannot create the Embree device");
+  m.scene = rtcNewScene(m.device);
+  rtcSetSceneFlags(m.scene, RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(m.scene, RTC_BUILD_QUALITY_HIGH);
+  RTCGeometry geom = rtcNewGeometry(m.device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  rtcSetGeometryBuildQuality(geom, RTC_BUILD_QUALITY_HIGH);
+  auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0,
+                                                         RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                                         surface.vertices.size()));
+  auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0,
+                                                            RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
+                                                            surface.triangles.size()));
+  if (!vb || !ib) throw Error(ErrorCode::Internal, "access: cannot allocate the Embree buffers");
+  for (std::size_t i = 0; i < surface.vertices.size(); ++i)
+    for (int k = 0; k < 3; ++k) vb[3 * i + k] = static_cast<float>(surface.vertices[i][k]);
+  for (std::size_t i = 0; i < surface.triangles.size(); ++i)
+    for (int k = 0; k < 3; ++k) ib[3 * i + k] = static_cast<unsigned>(surface.triangles[i][k]);
+  rtcCommitGeometry(geom);
+  rtcAttachGeometry(m.scene, geom);
+  rtcReleaseGeometry(geom);
+  rtcCommitScene(m.scene);
+  if (rtcGetDeviceError(m.device) != RTC_ERROR_NONE)
+    throw Error(ErrorCode::Internal, "access: Embree could not build the surface BVH");
+}
+
+RayScene::~RayScene() {
+  if (impl_->scene) rtcReleaseScene(impl_->scene);
+  if (impl_->device) rtcReleaseDevice(impl_->device);
+}
+
+double RayScene::distance_below(const Vec3& p, double radius_mm) const {
+  return point_query(p, radius_mm, false);
+}
+
+bool RayScene::near(const Vec3& p, double radius_mm) const {
+  return point_query(p, radius_mm, true) < radius_mm;
+}
+
+double RayScene::point_query(const Vec3& p, double radius_mm, bool any) const {
+  DistanceQuery q{&impl_->mesh, p, radius_mm, any};
+  RTCPointQuery query;
+  query.x = static_cast<float>(p.x());
+  query.y = static_cast<float>(p.y());
+  query.z = static_cast<float>(p.z());
+  query.time = 0.0f;
+  query.radius = static_cast<float>(radius_mm);
+  RTCPointQueryContext ctx;
+  rtcInitPointQueryContext(&ctx);
+  rtcPointQuery(impl_->scene, &query, &ctx, shrink_to_triangle, &q);
+  return q.best;
+}
+
+bool RayScene::escapes(const Vec3& origin, const Vec3& dir) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRay ray = make_ray(origin, dir);
+  rtcOccluded1(impl_->scene, &ctx, &ray);
+  return ray.tfar >= 0.0f;  // Embree sets tfar to -inf on a hit
+}
+
+}  // namespace dhfcast::detail

@@ -1,0 +1,516 @@
+// check_output(): read the folder, check the contract and the solids, then run the geometric
+// checks on indexed meshes; format_text() / format_json().
+#include "dhfcast/check.h"
+
+#include <oneapi/tbb/parallel_for.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+
+#include "check_internal.h"
+#include "dhfcast/error.h"
+#include "dhfcast/mesh.h"
+
+namespace dhfcast {
+
+namespace detail {
+
+std::string format(const char* fmt, ...) {
+  char text[512];
+  va_list args;
+  va_start(args, fmt);
+  std::vsnprintf(text, sizeof text, fmt, args);
+  va_end(args);
+  return text;
+}
+
+std::string part_name(const CheckedPart& part) { return "part " + std::to_string(part.id); }
+
+}  // namespace detail
+
+namespace {
+
+namespace fs = std::filesystem;
+using detail::format;
+using nlohmann::json;
+
+void validate_options(const CheckOptions& o) {
+  auto require = [](bool ok, const char* what) {
+    if (!ok) throw Error(ErrorCode::InvalidOptions, std::string("check: ") + what);
+  };
+  require(o.epsilon_mm > 0 && std::isfinite(o.epsilon_mm), "epsilon_mm must be > 0");
+  require(o.json_volume_tolerance >= 0, "json_volume_tolerance must be >= 0");
+  require(o.max_volume_error >= 0, "max_volume_error must be >= 0");
+  require(o.coverage_samples > 0, "coverage_samples must be > 0");
+  require(o.max_overlap_fraction >= 0 && o.max_gap_fraction >= 0 && o.max_outside_fraction >= 0,
+          "coverage thresholds must be >= 0");
+  require(o.dhf_lines > 0, "dhf_lines must be > 0");
+  require(o.max_dhf_violation_fraction >= 0, "max_dhf_violation_fraction must be >= 0");
+  require(o.assembly_samples >= 0, "assembly_samples must be >= 0");
+  require(o.max_blocked_samples >= 0, "max_blocked_samples must be >= 0");
+  require(o.mold_samples > 0, "mold_samples must be > 0");
+  require(o.min_mold_surface_coverage >= 0 && o.min_mold_surface_coverage <= 1,
+          "min_mold_surface_coverage must be in [0, 1]");
+  require(o.fidelity_samples > 0, "fidelity_samples must be > 0");
+  require(o.max_fidelity_p99_rel >= 0, "max_fidelity_p99_rel must be >= 0");
+}
+
+// --- what decomposition.json says, as far as it can be read ---
+
+struct PartEntry {
+  std::int32_t id = -1;
+  std::string mesh;
+  std::optional<Vec3> direction;
+  double volume_mm3 = std::numeric_limits<double>::quiet_NaN();
+  std::string mold_up, mold_down;  // both empty when the part lists no molds
+};
+
+struct FolderContents {
+  bool parsed = false;
+  bool parts_complete = false;  // every part has an id, a mesh file and a direction
+  std::vector<PartEntry> parts;
+  std::vector<std::int32_t> order;  // assembly_order as written
+  bool order_is_permutation = false;
+  double input_volume_mm3 = 0.0;
+  std::optional<Box3> input_bbox;
+  std::vector<std::string> problems;  // contract violations, in the order found
+};
+
+std::optional<Vec3> vec3(const json& j) {
+  if (!j.is_array() || j.size() != 3) return std::nullopt;
+  Vec3 v;
+  for (int k = 0; k < 3; ++k) {
+    if (!j[k].is_number()) return std::nullopt;
+    v[k] = j[k].get<double>();
+  }
+  if (!v.allFinite()) return std::nullopt;
+  return v;
+}
+
+std::string read_file(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(ErrorCode::Io, "cannot read " + path.string());
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw Error(ErrorCode::Io, "cannot read " + path.string());
+  return text.str();
+}
+
+// Reads the part list and checks everything the contract promises about decomposition.json.
+FolderContents read_contents(const fs::path& outdir, const std::string& text) {
+  FolderContents c;
+  auto problem = [&](const std::string& what) { c.problems.push_back(what); };
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const json::parse_error& e) {
+    problem(std::string("decomposition.json is not valid JSON: ") + e.what());
+    return c;
+  }
+  if (!j.is_object()) {
+    problem("decomposition.json is not a JSON object");
+    return c;
+  }
+  c.parsed = true;
+  if (!j.contains("format") || j["format"] != "dhfcast-decomposition")
+    problem("format is not \"dhfcast-decomposition\"");
+  if (!j.contains("version") || !j["version"].is_number_integer() || j["version"] != 1)
+    problem("version is not 1");
+
+  if (j.contains("input") && j["input"].is_object()) {
+    const json& in = j["input"];
+    if (in.contains("volume_mm3") && in["volume_mm3"].is_number())
+      c.input_volume_mm3 = in["volume_mm3"].get<double>();
+    if (in.contains("bbox_mm") && in["bbox_mm"].is_array() && in["bbox_mm"].size() == 2) {
+      const std::optional<Vec3> lo = vec3(in["bbox_mm"][0]), hi = vec3(in["bbox_mm"][1]);
+      if (lo && hi && (lo->array() <= hi->array()).all()) c.input_bbox = Box3{*lo, *hi};
+    }
+  }
+
+  auto file_exists = [&](const std::string& file, const std::string& what) {
+    std::error_code ec;
+    if (!fs::is_regular_file(outdir / file, ec)) problem(what + " " + file + " does not exist");
+  };
+  if (!j.contains("parts") || !j["parts"].is_array() || j["parts"].empty()) {
+    problem("no parts array");
+    return c;
+  }
+  c.parts_complete = true;
+  for (std::size_t i = 0; i < j["parts"].size(); ++i) {
+    const json& jp = j["parts"][i];
+    const std::string where = "parts[" + std::to_string(i) + "]";
+    PartEntry p;
+    if (!jp.is_object()) {
+      problem(where + " is not an object");
+      c.parts_complete = false;
+      c.parts.push_back(p);
+      continue;
+    }
+    if (jp.contains("id") && jp["id"].is_number_integer() && jp["id"].get<std::int64_t>() >= 0 &&
+        jp["id"].get<std::int64_t>() < std::numeric_limits<std::int32_t>::max())
+      p.id = jp["id"].get<std::int32_t>();
+    else
+      problem(where + " has no integer id >= 0");
+    if (jp.contains("mesh") && jp["mesh"].is_string()) {
+      p.mesh = jp["mesh"].get<std::string>();
+      file_exists(p.mesh, where + " mesh");
+    } else {
+      problem(where + " has no mesh file name");
+    }
+    p.direction = jp.contains("direction") ? vec3(jp["direction"]) : std::nullopt;
+    if (!p.direction)
+      problem(where + " has no direction [x, y, z]");
+    else if (std::abs(p.direction->norm() - 1.0) >= 1e-6)
+      problem(where + format(" direction has length %.9g, not 1", p.direction->norm()));
+    if (p.direction && p.direction->norm() == 0.0) p.direction.reset();
+    if (jp.contains("volume_mm3") && jp["volume_mm3"].is_number())
+      p.volume_mm3 = jp["volume_mm3"].get<double>();
+    else
+      problem(where + " has no volume_mm3");
+    if (jp.contains("molds")) {
+      const json& m = jp["molds"];
+      if (m.is_object() && m.contains("up") && m["up"].is_string() && m.contains("down") &&
+          m["down"].is_string()) {
+        p.mold_up = m["up"].get<std::string>();
+        p.mold_down = m["down"].get<std::string>();
+        file_exists(p.mold_up, where + " mold");
+        file_exists(p.mold_down, where + " mold");
+      } else {
+        problem(where + " molds is not {\"up\": file, \"down\": file}");
+      }
+    }
+    if (p.id < 0 || p.mesh.empty() || !p.direction) c.parts_complete = false;
+    c.parts.push_back(p);
+  }
+
+  const auto n = static_cast<std::int32_t>(c.parts.size());
+  std::set<std::int32_t> ids;
+  for (const PartEntry& p : c.parts)
+    if (p.id >= 0) ids.insert(p.id);
+  const bool ids_ok = static_cast<std::int32_t>(ids.size()) == n &&
+                      (ids.empty() || (*ids.begin() == 0 && *ids.rbegin() == n - 1));
+  if (!ids_ok) problem(format("part ids are not 0..%d, each once", n - 1));
+
+  if (!j.contains("assembly_order") || !j["assembly_order"].is_array()) {
+    problem("no assembly_order array");
+  } else {
+    bool integers = true;
+    for (const json& e : j["assembly_order"]) {
+      if (e.is_number_integer() && std::abs(e.get<std::int64_t>()) < (1 << 30))
+        c.order.push_back(e.get<std::int32_t>());
+      else
+        integers = false;
+    }
+    std::vector<std::int32_t> sorted = c.order;
+    std::sort(sorted.begin(), sorted.end());
+    c.order_is_permutation = integers && ids_ok && std::ranges::equal(sorted, ids);
+    if (!c.order_is_permutation) {
+      std::string list;
+      for (const json& e : j["assembly_order"]) {
+        if (!list.empty()) list += ", ";
+        list += e.dump();
+      }
+      problem("assembly_order [" + list + "] is not a permutation of the part ids");
+    }
+  }
+  return c;
+}
+
+CheckItem contract_item(const FolderContents& c) {
+  CheckItem item;
+  item.name = "contract";
+  item.passed = c.problems.empty();
+  item.figures = {{"parts", static_cast<double>(c.parts.size())},
+                  {"problems", static_cast<double>(c.problems.size())}};
+  if (item.passed) {
+    std::string order;
+    for (std::int32_t id : c.order) {
+      order += ' ';
+      order += std::to_string(id);
+    }
+    item.summary = format("dhfcast-decomposition v1, %zu part%s, assembly order%s, files present",
+                          c.parts.size(), c.parts.size() == 1 ? "" : "s", order.c_str());
+  } else {
+    item.summary = c.problems.front();
+    if (c.problems.size() > 1) item.summary += format(" (and %zu more)", c.problems.size() - 1);
+  }
+  return item;
+}
+
+// --- meshes ---
+
+struct LoadedMesh {
+  enum class Kind { Part, MoldUp, MoldDown };
+  std::string file;  // as named in decomposition.json
+  Kind kind = Kind::Part;
+  bool is_part() const { return kind == Kind::Part; }
+  std::int32_t part = 0;  // index into FolderContents::parts
+  std::optional<TriMesh> mesh;
+  std::string problem;        // why it is not a valid solid ("" when it is)
+  double volume_error = 0.0;  // parts: |json - mesh| / |mesh|
+  bool volume_ok = true;      // within the tolerance
+};
+
+// Directed uses of each edge must cancel: closed and consistently oriented, even where the part
+// touches itself along an edge (four triangles, two each way).
+std::int64_t unbalanced_edges(const TriMesh& mesh) {
+  std::map<std::pair<std::int32_t, std::int32_t>, int> balance;
+  for (const Tri& t : mesh.triangles)
+    for (int k = 0; k < 3; ++k) {
+      const std::int32_t a = t[k], b = t[(k + 1) % 3];
+      if (a != b) balance[{std::min(a, b), std::max(a, b)}] += a < b ? 1 : -1;
+    }
+  return std::ranges::count_if(balance, [](const auto& e) { return e.second != 0; });
+}
+
+// A part may touch itself at edges and vertices (its welded mesh is then non-manifold there);
+// anything else validate_mesh() finds is a problem.
+std::string part_problem(const TriMesh& mesh) {
+  const MeshDiagnostics d = validate_mesh(mesh);
+  if (d.nonfinite_vertices > 0 || unbalanced_edges(mesh) > 0) return d.first_problem;
+  if (d.degenerate_triangles > 0)
+    return format("%lld degenerate triangle%s (zero area or repeated vertex)",
+                  static_cast<long long>(d.degenerate_triangles),
+                  d.degenerate_triangles == 1 ? "" : "s");
+  if (d.intersecting_pairs > 0) return d.first_problem;
+  if (d.volume_mm3 <= 0) return format("inward oriented or empty (volume %.6g mm3)", d.volume_mm3);
+  return {};
+}
+
+std::string mold_problem(const TriMesh& mesh) {
+  const MeshDiagnostics d = validate_mesh(mesh);
+  if (!d.ok()) return d.first_problem;
+  if (d.volume_mm3 <= 0) return format("inward oriented (volume %.6g mm3)", d.volume_mm3);
+  return {};
+}
+
+// How much the volume can change when the vertices are rounded to float (STL files): each moves
+// by less than 2^-23 of the largest coordinate, sweeping at most that times the area.
+double float_rounding_mm3(const TriMesh& mesh) {
+  double area = 0.0, largest = 0.0;
+  for (const Tri& t : mesh.triangles) {
+    const Vec3& a = mesh.vertices[t[0]];
+    area += 0.5 * (mesh.vertices[t[1]] - a).cross(mesh.vertices[t[2]] - a).norm();
+  }
+  for (const Vec3& p : mesh.vertices) largest = std::max(largest, p.cwiseAbs().maxCoeff());
+  return area * largest * 0x1p-23;
+}
+
+std::vector<LoadedMesh> load_meshes(const fs::path& outdir, const FolderContents& c,
+                                    const CheckOptions& o) {
+  std::vector<LoadedMesh> meshes;
+  for (std::size_t i = 0; i < c.parts.size(); ++i) {
+    const PartEntry& p = c.parts[i];
+    const auto part = static_cast<std::int32_t>(i);
+    auto add = [&](const std::string& file, LoadedMesh::Kind kind) {
+      LoadedMesh m;
+      m.file = file;
+      m.kind = kind;
+      m.part = part;
+      meshes.push_back(std::move(m));
+    };
+    if (!p.mesh.empty()) add(p.mesh, LoadedMesh::Kind::Part);
+    if (!p.mold_up.empty()) {
+      add(p.mold_up, LoadedMesh::Kind::MoldUp);
+      add(p.mold_down, LoadedMesh::Kind::MoldDown);
+    }
+  }
+  tbb::parallel_for(std::size_t{0}, meshes.size(), [&](std::size_t i) {
+    LoadedMesh& m = meshes[i];
+    try {
+      m.mesh = read_mesh((outdir / m.file).string());
+    } catch (const Error& e) {
+      m.problem = e.what();
+      return;
+    }
+    m.problem = m.is_part() ? part_problem(*m.mesh) : mold_problem(*m.mesh);
+    const double json_volume = c.parts[m.part].volume_mm3;
+    if (m.is_part() && std::isfinite(json_volume)) {
+      const double v = signed_volume(*m.mesh);
+      m.volume_error = std::abs(json_volume - v) / std::max(std::abs(v), 1e-300);
+      m.volume_ok = std::abs(json_volume - v) <=
+                    o.json_volume_tolerance * std::abs(v) + float_rounding_mm3(*m.mesh);
+    }
+  });
+  return meshes;
+}
+
+CheckItem solids_item(const std::vector<LoadedMesh>& meshes) {
+  CheckItem item;
+  item.name = "solids";
+  std::int64_t parts = 0, molds = 0, bad = 0;
+  double worst_volume_error = 0.0;
+  std::string first;
+  for (const LoadedMesh& m : meshes) {
+    (m.is_part() ? parts : molds)++;
+    worst_volume_error = std::max(worst_volume_error, m.volume_error);
+    std::string problem = m.problem;
+    if (problem.empty() && !m.volume_ok)
+      problem = format("volume_mm3 in decomposition.json is off by %.3g (relative) from the mesh's",
+                       m.volume_error);
+    if (problem.empty()) continue;
+    if (bad++ == 0) first = m.file + ": " + problem;
+  }
+  item.passed = !meshes.empty() && bad == 0;
+  item.figures = {{"part_meshes", static_cast<double>(parts)},
+                  {"mold_meshes", static_cast<double>(molds)},
+                  {"bad_meshes", static_cast<double>(bad)},
+                  {"max_volume_error", worst_volume_error}};
+  if (meshes.empty())
+    item.summary = "no part meshes to check";
+  else if (bad == 0)
+    item.summary =
+        format("%lld part%s%s: closed, oriented, outward; json volumes match (%.2g relative)",
+               static_cast<long long>(parts), parts == 1 ? "" : "s",
+               molds ? format(" and %lld mold halves", static_cast<long long>(molds)).c_str() : "",
+               worst_volume_error);
+  else
+    item.summary =
+        first + (bad > 1 ? format(" (and %lld more)", static_cast<long long>(bad - 1)) : "");
+  return item;
+}
+
+CheckItem skipped(const std::string& name, const std::string& why) {
+  CheckItem item;
+  item.name = name;
+  item.skipped = true;
+  item.summary = why;
+  return item;
+}
+
+}  // namespace
+
+bool CheckReport::passed() const {
+  return std::ranges::all_of(items, [](const CheckItem& i) { return i.skipped || i.passed; });
+}
+
+CheckReport check_output(const CheckOptions& options) {
+  validate_options(options);
+  const fs::path outdir(options.outdir);
+  std::error_code ec;
+  if (!fs::is_directory(outdir, ec))
+    throw Error(ErrorCode::Io, options.outdir + " is not a folder");
+  const std::string text = read_file(outdir / "decomposition.json");
+
+  detail::CheckContext context;
+  context.options = options;
+  if (!options.input_mesh.empty()) context.input.emplace(load_solid(options.input_mesh).mesh);
+
+  CheckReport report;
+  const FolderContents contents = read_contents(outdir, text);
+  report.items.push_back(contract_item(contents));
+  const std::vector<LoadedMesh> meshes = load_meshes(outdir, contents, options);
+  report.items.push_back(solids_item(meshes));
+
+  // --- the geometric checks need every part mesh and its direction ---
+  auto usable = [](const LoadedMesh& m) { return m.mesh && !m.mesh->triangles.empty(); };
+  std::string cannot_run;
+  if (!contents.parsed)
+    cannot_run = "decomposition.json could not be read";
+  else if (!contents.parts_complete)
+    cannot_run = "the parts list is incomplete (see contract)";
+  for (const LoadedMesh& m : meshes)
+    if (cannot_run.empty() && m.is_part() && !usable(m))
+      cannot_run = m.file + " could not be read (see solids)";
+  const char* kGeometric[] = {"coverage", "dhf", "assembly", "molds", "fidelity"};
+  if (!cannot_run.empty()) {
+    for (const char* name : kGeometric) report.items.push_back(skipped(name, cannot_run));
+    return report;
+  }
+
+  context.json_input_volume_mm3 = contents.input_volume_mm3;
+  context.json_input_bbox = contents.input_bbox;
+  // Indices are built in parallel, one mesh each; each is read-only afterwards.
+  std::vector<std::optional<detail::SurfaceIndex>> indices(meshes.size());
+  tbb::parallel_for(std::size_t{0}, meshes.size(), [&](std::size_t i) {
+    if (usable(meshes[i])) indices[i].emplace(*meshes[i].mesh);
+  });
+  // Each part's mesh comes first in `meshes`, followed by its mold halves (up, down).
+  for (std::size_t i = 0; i < meshes.size(); ++i) {
+    const LoadedMesh& m = meshes[i];
+    if (m.is_part()) {
+      const PartEntry& entry = contents.parts[m.part];
+      context.parts.push_back(detail::CheckedPart{
+          .id = entry.id,
+          .mesh_file = entry.mesh,
+          .direction = entry.direction->normalized(),
+          .volume_mm3 = std::isfinite(entry.volume_mm3) ? entry.volume_mm3 : signed_volume(*m.mesh),
+          .solid = std::move(*indices[i]),
+          .molds_listed = !entry.mold_up.empty(),
+          .mold_up = std::nullopt,
+          .mold_down = std::nullopt});
+    } else if (indices[i]) {
+      (m.kind == LoadedMesh::Kind::MoldUp ? context.parts.back().mold_up
+                                          : context.parts.back().mold_down) =
+          std::move(*indices[i]);
+    }
+  }
+  if (contents.order_is_permutation) {
+    std::map<std::int32_t, std::int32_t> index_of_id;
+    for (std::size_t i = 0; i < context.parts.size(); ++i)
+      index_of_id[context.parts[i].id] = static_cast<std::int32_t>(i);
+    for (std::int32_t id : contents.order) context.order.push_back(index_of_id.at(id));
+  }
+
+  report.items.push_back(detail::check_coverage(context));
+  report.items.push_back(detail::check_dhf(context));
+  report.items.push_back(detail::check_assembly(context));
+  report.items.push_back(detail::check_molds(context));
+  report.items.push_back(detail::check_fidelity(context));
+  return report;
+}
+
+std::string format_text(const CheckReport& report) {
+  std::string out;
+  std::vector<std::string> failed;
+  int skipped_count = 0;
+  for (const CheckItem& item : report.items) {
+    const char* status = item.skipped ? "SKIP" : item.passed ? "PASS" : "FAIL";
+    out += format("%s %-9s %s\n", status, item.name.c_str(), item.summary.c_str());
+    if (item.skipped)
+      ++skipped_count;
+    else if (!item.passed)
+      failed.push_back(item.name);
+  }
+  const int ran = static_cast<int>(report.items.size()) - skipped_count;
+  if (failed.empty()) {
+    out += format("PASS: %d check%s passed", ran, ran == 1 ? "" : "s");
+  } else {
+    std::string names;
+    for (const std::string& n : failed) {
+      if (!names.empty()) names += ", ";
+      names += n;
+    }
+    out += format("FAIL: %zu of %d checks failed (%s)", failed.size(), ran, names.c_str());
+  }
+  out += skipped_count ? format(", %d skipped\n", skipped_count) : "\n";
+  return out;
+}
+
+std::string format_json(const CheckReport& report) {
+  nlohmann::ordered_json checks = nlohmann::ordered_json::array();
+  for (const CheckItem& item : report.items) {
+    nlohmann::ordered_json figures = nlohmann::ordered_json::object();
+    for (const auto& [key, value] : item.figures) figures[key] = value;
+    checks.push_back({{"name", item.name},
+                      {"status", item.skipped  ? "skip"
+                                 : item.passed ? "pass"
+                                               : "fail"},
+                      {"summary", item.summary},
+                      {"figures", figures}});
+  }
+  const nlohmann::ordered_json j = {{"passed", report.passed()}, {"checks", checks}};
+  return j.dump(2) + "\n";
+}
+
+}  // namespace dhfcast

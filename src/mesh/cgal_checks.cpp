@@ -1,0 +1,61 @@
+// Exact predicates for validate_mesh(): the only file of the mesh stage that includes CGAL.
+#include "cgal_checks.h"
+
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
+#include <CGAL/Surface_mesh.h>
+
+#include <algorithm>
+#include <iterator>
+#include <utility>
+#include <vector>
+
+#include "dhfcast/error.h"
+
+namespace dhfcast::detail {
+
+namespace {
+using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+using Point = Kernel::Point_3;
+using SurfaceMesh = CGAL::Surface_mesh<Point>;
+using FaceIndex = SurfaceMesh::Face_index;
+
+Point to_point(const Vec3& p) { return Point(p.x(), p.y(), p.z()); }
+}  // namespace
+
+bool collinear_exact(const Vec3& a, const Vec3& b, const Vec3& c) {
+  return CGAL::collinear(to_point(a), to_point(b), to_point(c));
+}
+
+SelfIntersections find_self_intersections(const TriMesh& mesh, unsigned max_pairs) {
+  SurfaceMesh sm;
+  sm.reserve(static_cast<SurfaceMesh::size_type>(mesh.vertices.size()),
+             static_cast<SurfaceMesh::size_type>(3 * mesh.triangles.size() / 2),
+             static_cast<SurfaceMesh::size_type>(mesh.triangles.size()));
+  for (const Vec3& p : mesh.vertices) sm.add_vertex(to_point(p));
+  // Faces are added in order, so face index i is triangle i.
+  for (const Tri& t : mesh.triangles) {
+    const FaceIndex f =
+        sm.add_face(SurfaceMesh::Vertex_index(t[0]), SurfaceMesh::Vertex_index(t[1]),
+                    SurfaceMesh::Vertex_index(t[2]));
+    if (f == SurfaceMesh::null_face())
+      throw Error(ErrorCode::Internal,
+                  "internal error: a mesh that passed the topology checks is not a surface mesh");
+  }
+
+  std::vector<std::pair<FaceIndex, FaceIndex>> found;
+  CGAL::Polygon_mesh_processing::self_intersections<CGAL::Sequential_tag>(
+      sm, std::back_inserter(found), CGAL::parameters::maximum_number(max_pairs));
+
+  SelfIntersections result;
+  result.pairs = static_cast<std::int64_t>(found.size());
+  result.limit_reached = found.size() >= max_pairs;
+  for (const auto& [f, g] : found) {
+    std::array<std::int32_t, 2> pair = {static_cast<std::int32_t>(f), static_cast<std::int32_t>(g)};
+    if (pair[0] > pair[1]) std::swap(pair[0], pair[1]);
+    if (result.first[0] < 0 || pair < result.first) result.first = pair;
+  }
+  return result;
+}
+
+}  // namespace dhfcast::detail

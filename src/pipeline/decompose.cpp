@@ -1,0 +1,197 @@
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <string>
+
+#include "dhfcast/directions.h"
+#include "dhfcast/error.h"
+#include "dhfcast/pipeline.h"
+
+namespace dhfcast {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+void require(bool ok, const std::string& what) {
+  if (!ok) throw Error(ErrorCode::InvalidOptions, "invalid option: " + what);
+}
+
+// The tets listed in `subset` as a mesh of their own (vertices renumbered, adjacency rebuilt).
+TetMesh sub_mesh(const TetMesh& tets, const std::vector<std::int32_t>& subset) {
+  TetMesh sub;
+  std::map<std::int32_t, std::int32_t> vertex_index;
+  for (std::int32_t t : subset) {
+    Tet k;
+    for (int i = 0; i < 4; ++i) {
+      auto [it, added] = vertex_index.emplace(tets.tets[t][i], 0);
+      if (added) {
+        it->second = static_cast<std::int32_t>(sub.vertices.size());
+        sub.vertices.push_back(tets.vertices[tets.tets[t][i]]);
+      }
+      k[i] = it->second;
+    }
+    sub.tets.push_back(k);
+  }
+  build_tet_adjacency(sub);
+  return sub;
+}
+
+// Connected components (through shared faces) of the tets with label -1.
+std::vector<std::vector<std::int32_t>> inaccessible_components(
+    const TetMesh& tets, const std::vector<std::int32_t>& label) {
+  std::vector<std::vector<std::int32_t>> components;
+  std::vector<char> seen(tets.tets.size(), 0);
+  for (std::int32_t s = 0; s < static_cast<std::int32_t>(tets.tets.size()); ++s) {
+    if (label[s] >= 0 || seen[s]) continue;
+    std::vector<std::int32_t> component{s}, stack{s};
+    seen[s] = 1;
+    while (!stack.empty()) {
+      const std::int32_t t = stack.back();
+      stack.pop_back();
+      for (std::int32_t n : tets.neighbors[t])
+        if (n >= 0 && label[n] < 0 && !seen[n]) {
+          seen[n] = 1;
+          component.push_back(n);
+          stack.push_back(n);
+        }
+    }
+    std::sort(component.begin(), component.end());
+    components.push_back(std::move(component));
+  }
+  return components;
+}
+
+// Gives every tet still labeled -1 the (region, label) of a labeled face neighbour, growing
+// from the labeled tets inward, so no tet is left without a part.
+void merge_into_neighbours(const TetMesh& tets, std::vector<std::int32_t>& label,
+                           std::vector<std::int32_t>& region) {
+  bool changed = true;
+  while (changed) {
+    changed = false;
+    const std::vector<std::int32_t> before = label;
+    for (std::size_t t = 0; t < tets.tets.size(); ++t) {
+      if (before[t] >= 0) continue;
+      for (std::int32_t n : tets.neighbors[t])
+        if (n >= 0 && before[n] >= 0) {
+          label[t] = before[n];
+          region[t] = region[n];
+          changed = true;
+          break;
+        }
+    }
+  }
+}
+
+double mean_edge_length(const TetMesh& tets) {
+  double sum = 0.0;
+  for (const Tet& k : tets.tets)
+    for (int i = 0; i < 4; ++i)
+      for (int j = i + 1; j < 4; ++j) sum += (tets.vertices[k[i]] - tets.vertices[k[j]]).norm();
+  return tets.tets.empty() ? 0.0 : sum / (6.0 * static_cast<double>(tets.tets.size()));
+}
+
+}  // namespace
+
+void validate_options(const DecomposeOptions& o) {
+  require(o.tets.target_tets >= 100 && o.tets.target_tets <= 5'000'000,
+          "--tets must be between 100 and 5000000");
+  require(std::isfinite(o.tets.facet_distance_mm) && o.tets.facet_distance_mm > 0,
+          "--facet-distance must be > 0");
+  require(o.directions >= 6 && o.directions <= 4096, "--directions must be between 6 and 4096");
+  require(std::isfinite(o.access.epsilon_mm) && o.access.epsilon_mm >= 0,
+          "--epsilon must be >= 0");
+  require(std::isfinite(o.segment.alpha) && o.segment.alpha >= 0, "--alpha must be >= 0");
+  require(std::isfinite(o.segment.c_mm) && o.segment.c_mm > 0, "--c must be > 0");
+  require(std::isfinite(o.segment.beta_mm) && o.segment.beta_mm >= 0, "--beta must be >= 0");
+  require(std::isfinite(o.segment.lambda) && o.segment.lambda >= 0, "--lambda must be >= 0");
+  require(o.segment.restarts >= 1 && o.segment.restarts <= 1000,
+          "--restarts must be between 1 and 1000");
+}
+
+Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
+                        const StageProgress& progress) {
+  validate_options(opts);
+  auto report = [&](const std::string& stage, double f) {
+    if (progress) progress(stage, f);
+  };
+  // Stages report their own progress strictly inside (0, 1): start and end are said here.
+  auto inner = [&](const std::string& stage) {
+    return [&, stage](double f) { report(stage, std::clamp(f, 1e-6, 0.999)); };
+  };
+  Decomposition d;
+
+  // --- 1. tetrahedralize ---
+  auto t0 = Clock::now();
+  report("tetrahedralize", 0.0);
+  d.tets = tetrahedralize(solid, opts.tets);
+  report("tetrahedralize", 1.0);
+  d.timings.tetrahedralize = seconds_since(t0);
+
+  // --- 2. accessibility ---
+  t0 = Clock::now();
+  d.directions = fibonacci_directions(opts.directions);
+  report("accessibility", 0.0);
+  d.access = compute_accessibility(
+      solid, d.tets, d.directions, opts.access, inner("accessibility"));
+  report("accessibility", 1.0);
+  d.timings.accessibility = seconds_since(t0);
+
+  // --- 3. segmentation ---
+  t0 = Clock::now();
+  report("segmentation", 0.0);
+  d.labeling = segment(d.tets, d.access, opts.segment, inner("segmentation"));
+  std::vector<std::int32_t> label = d.labeling.label;
+  std::vector<std::int32_t> region(label.size(), 0);
+  std::vector<std::vector<Vec3>> region_directions{d.directions};
+
+  // Tets feasible for no direction (enclosed volumes, paper §6): each connected region of them
+  // is decomposed again on its own, with accessibility taken from its own boundary. The parts
+  // it gives are DHFs; whether they can be put in place is left to the assembly planner.
+  for (const std::vector<std::int32_t>& component : inaccessible_components(d.tets, label)) {
+    InaccessibleRegion info;
+    info.id = static_cast<std::int32_t>(region_directions.size());
+    info.tets = static_cast<std::int32_t>(component.size());
+    for (std::int32_t t : component) info.volume_mm3 += tet_volume(d.tets, t);
+
+    const TetMesh sub = sub_mesh(d.tets, component);
+    const std::vector<Part> shell = extract_parts(
+        sub, std::vector<std::int32_t>(sub.tets.size(), 0),
+        std::vector<std::int32_t>(sub.tets.size(), 0), {{Vec3::UnitZ()}});
+    const AccessibilityField sub_field =
+        compute_accessibility(shell.at(0).mesh, sub, d.directions, opts.access);
+    const Labeling sub_labeling = segment(sub, sub_field, opts.segment);
+    for (std::size_t i = 0; i < component.size(); ++i) {
+      label[component[i]] = sub_labeling.label[i];
+      region[component[i]] = info.id;
+      if (sub_labeling.label[i] < 0) ++info.still_inaccessible_tets;
+    }
+    region_directions.push_back(d.directions);
+    d.inaccessible_regions.push_back(info);
+  }
+  merge_into_neighbours(d.tets, label, region);
+  report("segmentation", 1.0);
+  d.timings.segmentation = seconds_since(t0);
+
+  // --- 4. parts and assembly order ---
+  t0 = Clock::now();
+  report("parts", 0.0);
+  if (std::find(label.begin(), label.end(), -1) != label.end())
+    throw Error(ErrorCode::Internal, "a tet region has no direction at all");
+  d.parts = extract_parts(d.tets, label, region, region_directions);
+  // The parts are unions of tets, so neighbours interlock along their interfaces by up to about
+  // one tet: contact that shallow is the interfaces' roughness, not a blocking part.
+  d.assembly_tolerance_mm = opts.access.epsilon_mm + mean_edge_length(d.tets);
+  d.assembly = plan_assembly(d.tets, d.parts, d.assembly_tolerance_mm);
+  for (Part& p : d.parts)
+    if (d.assembly.reversed[p.id]) p.direction = -p.direction;
+  report("parts", 1.0);
+  d.timings.parts = seconds_since(t0);
+  return d;
+}
+
+}  // namespace dhfcast

@@ -1,0 +1,221 @@
+#include "dhfcast/segment.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "alpha_expansion.h"
+#include "dhfcast/error.h"
+
+namespace dhfcast {
+namespace {
+
+void check_options(const SegmentOptions& o) {
+  const auto fail = [](const std::string& what) {
+    throw Error(ErrorCode::InvalidOptions, "segmentation: " + what);
+  };
+  if (!(o.alpha >= 0.0) || !std::isfinite(o.alpha)) fail("alpha must be >= 0");
+  if (!(o.c_mm > 0.0) || !std::isfinite(o.c_mm)) fail("c_mm must be > 0");
+  if (!(o.beta_mm >= 0.0) || !std::isfinite(o.beta_mm)) fail("beta_mm must be >= 0");
+  if (!(o.lambda >= 0.0) || !std::isfinite(o.lambda)) fail("lambda must be >= 0");
+  if (o.restarts < 1) fail("restarts must be >= 1");
+}
+
+// Directions kept as labels, ascending. Two directions with the same feasible set give the same
+// data costs everywhere: only the lowest index is kept. A direction whose feasible set is a
+// strict subset of another's costs at least as much on every tet (it is closer to its
+// infeasible region), and moving its tets to the other never raises smoothness or label costs:
+// it is dropped. So is a direction feasible nowhere.
+std::vector<std::int32_t> candidate_directions(const DirectionBits& feasible) {
+  const std::int32_t num_tets = feasible.num_tets();
+  const std::int32_t num_dirs = feasible.num_directions();
+  const std::size_t words = (static_cast<std::size_t>(num_tets) + 63) / 64;
+  // Transpose the per-tet rows into one bitset of tets per direction.
+  std::vector<std::uint64_t> cols(words * num_dirs, 0);
+  for (std::int32_t t = 0; t < num_tets; ++t) {
+    const std::uint64_t* row = feasible.row(t);
+    for (std::int32_t w = 0; w < feasible.words_per_tet(); ++w) {
+      for (std::uint64_t bits = row[w]; bits != 0; bits &= bits - 1) {
+        const std::int32_t d = w * 64 + std::countr_zero(bits);
+        if (d < num_dirs) cols[d * words + t / 64] |= 1ull << (t % 64);
+      }
+    }
+  }
+  std::vector<std::int64_t> size(num_dirs, 0);
+  for (std::int32_t d = 0; d < num_dirs; ++d) {
+    for (std::size_t w = 0; w < words; ++w) size[d] += std::popcount(cols[d * words + w]);
+  }
+  std::vector<char> keep(num_dirs, 0);
+  tbb::parallel_for(std::int32_t{0}, num_dirs, [&](std::int32_t d) {
+    if (size[d] == 0) return;
+    const std::uint64_t* fd = cols.data() + d * words;
+    for (std::int32_t e = 0; e < num_dirs; ++e) {
+      if (e == d || size[e] < size[d] || (size[e] == size[d] && e > d)) continue;
+      const std::uint64_t* fe = cols.data() + e * words;
+      std::size_t w = 0;
+      while (w < words && (fd[w] & ~fe[w]) == 0) ++w;
+      if (w == words) return;  // F_d is inside F_e: identical (e < d) or strictly smaller
+    }
+    keep[d] = 1;
+  });
+  std::vector<std::int32_t> out;
+  for (std::int32_t d = 0; d < num_dirs; ++d) {
+    if (keep[d]) out.push_back(d);
+  }
+  return out;
+}
+
+// Parts of a labeling (connected components of equal label through shared faces; unlabeled
+// tets belong to none) and the variance of their volumes.
+struct PartStats {
+  std::int32_t parts = 0;
+  double volume_variance_mm6 = 0.0;
+};
+
+PartStats part_stats(const TetMesh& tets, const std::vector<double>& volume_mm3,
+                     const std::vector<std::int32_t>& label) {
+  const auto num_tets = static_cast<std::int32_t>(tets.tets.size());
+  std::vector<char> seen(num_tets, 0);
+  std::vector<std::int32_t> stack;
+  std::vector<double> part_volume_mm3;
+  for (std::int32_t s = 0; s < num_tets; ++s) {
+    if (seen[s] || label[s] < 0) continue;
+    double v = 0.0;
+    seen[s] = 1;
+    stack.assign(1, s);
+    while (!stack.empty()) {
+      const std::int32_t t = stack.back();
+      stack.pop_back();
+      v += volume_mm3[t];
+      for (std::int32_t u : tets.neighbors[t]) {
+        if (u >= 0 && !seen[u] && label[u] == label[t]) {
+          seen[u] = 1;
+          stack.push_back(u);
+        }
+      }
+    }
+    part_volume_mm3.push_back(v);
+  }
+  PartStats out;
+  out.parts = static_cast<std::int32_t>(part_volume_mm3.size());
+  if (out.parts == 0) return out;
+  double mean = 0.0;
+  for (double v : part_volume_mm3) mean += v;
+  mean /= out.parts;
+  for (double v : part_volume_mm3) out.volume_variance_mm6 += (v - mean) * (v - mean);
+  out.volume_variance_mm6 /= out.parts;
+  return out;
+}
+
+}  // namespace
+
+Labeling segment(const TetMesh& tets, const AccessibilityField& field, const SegmentOptions& opts,
+                 const Progress& progress) {
+  check_options(opts);
+  const auto num_tets = static_cast<std::int32_t>(tets.tets.size());
+  if (field.feasible.num_tets() != num_tets || tets.neighbors.size() != tets.tets.size()) {
+    throw Error(ErrorCode::InvalidInput,
+                "segmentation: the accessibility field or the adjacency does not match the tets");
+  }
+  Labeling out;
+  out.label.assign(num_tets, -1);
+
+  // --- 1. labels: directions left after removing duplicate and dominated feasible sets ---
+  const std::vector<std::int32_t> dirs = candidate_directions(field.feasible);
+  const auto num_labels = static_cast<std::int32_t>(dirs.size());
+  out.candidate_labels = num_labels;
+
+  // --- 2. nodes: tets feasible for some direction (hence for some candidate) ---
+  std::vector<std::int32_t> node_of(num_tets, -1), tet_of;
+  for (std::int32_t t = 0; t < num_tets; ++t) {
+    if (field.feasible.count(t) > 0) {
+      node_of[t] = static_cast<std::int32_t>(tet_of.size());
+      tet_of.push_back(t);
+    }
+  }
+  const auto num_nodes = static_cast<std::int32_t>(tet_of.size());
+  if (num_nodes == 0) {
+    if (progress) progress(1.0);
+    return out;
+  }
+  std::vector<double> volume_mm3(num_tets);
+  for (std::int32_t t = 0; t < num_tets; ++t) volume_mm3[t] = tet_volume(tets, t);
+
+  // --- 3. data cost (eq. 3): Volume * alpha * exp(-dist^2 / 2c^2) where feasible ---
+  LabelProblem problem;
+  problem.num_nodes = num_nodes;
+  problem.num_labels = num_labels;
+  problem.data.assign(static_cast<std::size_t>(num_nodes) * num_labels,
+                      std::numeric_limits<double>::infinity());
+  const double two_c2 = 2.0 * opts.c_mm * opts.c_mm;
+  tbb::parallel_for(std::int32_t{0}, num_labels, [&](std::int32_t l) {
+    const std::int32_t d = dirs[l];
+    // Beyond 4c the Gaussian is ~0 (paper §4.2.1): the distance is capped there.
+    const std::vector<float> dist_mm =
+        distance_to_infeasible(tets, field.feasible, d, 4.0 * opts.c_mm);
+    double* data = problem.data.data() + static_cast<std::size_t>(l) * num_nodes;
+    for (std::int32_t n = 0; n < num_nodes; ++n) {
+      const std::int32_t t = tet_of[n];
+      if (!field.feasible.get(t, d)) continue;
+      const double dist = dist_mm[t];
+      data[n] = volume_mm3[t] * opts.alpha * std::exp(-dist * dist / two_c2);
+    }
+  });
+
+  // --- 4. smoothness (§4.2.2): shared faces, and surface edges between two tets' faces ---
+  for (std::int32_t n = 0; n < num_nodes; ++n) {
+    const std::int32_t t = tet_of[n];
+    for (int f = 0; f < 4; ++f) {
+      const std::int32_t u = tets.neighbors[t][f];
+      if (u > t && node_of[u] >= 0) {
+        problem.edges.push_back({n, node_of[u], opts.beta_mm * tet_face_area(tets, t, f)});
+      }
+    }
+  }
+  const double beta2 = opts.beta_mm * opts.beta_mm;
+  for (const SeamEdge& e : field.seam_edges) {
+    if (node_of[e.tet_a] < 0 || node_of[e.tet_b] < 0) continue;
+    problem.edges.push_back(
+        {node_of[e.tet_a], node_of[e.tet_b], beta2 * (1.0 + e.visibility * e.length_mm)});
+  }
+
+  // --- 5. label cost (§4.2.3) and the randomized restarts ---
+  problem.label_cost.assign(num_labels, opts.lambda * total_volume(tets));
+  const detail::ExpansionSolver solver(problem);
+  const std::vector<detail::ExpansionRun> runs = solver.run_all(opts.seed, opts.restarts, progress);
+
+  // --- 6. best restart: fewest parts, then most even part volumes, then lowest energy ---
+  std::vector<std::vector<std::int32_t>> labels(runs.size());
+  std::vector<PartStats> stats(runs.size());
+  tbb::parallel_for(std::size_t{0}, runs.size(), [&](std::size_t r) {
+    labels[r].assign(num_tets, -1);
+    for (std::int32_t n = 0; n < num_nodes; ++n) labels[r][tet_of[n]] = dirs[runs[r].labels[n]];
+    stats[r] = part_stats(tets, volume_mm3, labels[r]);
+  });
+  std::size_t best = 0;
+  for (std::size_t r = 1; r < runs.size(); ++r) {
+    const PartStats& a = stats[r];
+    const PartStats& b = stats[best];
+    if (a.parts != b.parts) {
+      if (a.parts < b.parts) best = r;
+    } else if (a.volume_variance_mm6 != b.volume_variance_mm6) {
+      if (a.volume_variance_mm6 < b.volume_variance_mm6) best = r;
+    } else if (runs[r].energy < runs[best].energy) {
+      best = r;
+    }
+  }
+  out.label = std::move(labels[best]);
+  std::vector<char> used(num_labels, 0);
+  for (std::int32_t l : runs[best].labels) used[l] = 1;
+  for (char u : used) out.num_labels += u;
+  out.num_components = stats[best].parts;
+  out.energy = runs[best].energy;
+  out.best_restart = static_cast<std::int32_t>(best);
+  return out;
+}
+
+}  // namespace dhfcast

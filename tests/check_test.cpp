@@ -1,0 +1,542 @@
+// Tests of the output verifier: hand-made output folders, one good and one broken per kind of
+// problem, each failing on its own check; real meshes for the sampling machinery.
+#include "dhfcast/check.h"
+
+#include <gtest/gtest.h>
+#include <oneapi/tbb/global_control.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "dhfcast/error.h"
+#include "dhfcast/mesh.h"
+#include "support/test_support.h"
+
+namespace dhfcast {
+namespace {
+
+namespace fs = std::filesystem;
+
+// --- solids made of the cells of a rectilinear grid ---
+
+using Cells = std::function<bool(int i, int j, int k)>;
+
+// Boundary of the union of the filled cells [xs[i], xs[i+1]] x [ys[j], ys[j+1]] x [zs[k], zs[k+1]]:
+// outward, welded. Filled cells must not meet only along an edge or at a vertex.
+TriMesh grid_solid(const std::vector<double>& xs, const std::vector<double>& ys,
+                   const std::vector<double>& zs, const Cells& filled) {
+  const std::array<int, 3> n = {int(xs.size()) - 1, int(ys.size()) - 1, int(zs.size()) - 1};
+  auto in = [&](std::array<int, 3> c) {
+    for (int a = 0; a < 3; ++a)
+      if (c[a] < 0 || c[a] >= n[a]) return false;
+    return filled(c[0], c[1], c[2]);
+  };
+  TriMesh mesh;
+  std::map<std::array<int, 3>, std::int32_t> index;
+  auto vertex = [&](const std::array<int, 3>& g) {
+    auto [it, added] = index.emplace(g, 0);
+    if (added) {
+      it->second = static_cast<std::int32_t>(mesh.vertices.size());
+      mesh.vertices.emplace_back(xs[g[0]], ys[g[1]], zs[g[2]]);
+    }
+    return it->second;
+  };
+  for (int i = 0; i < n[0]; ++i)
+    for (int j = 0; j < n[1]; ++j)
+      for (int k = 0; k < n[2]; ++k) {
+        const std::array<int, 3> c = {i, j, k};
+        if (!in(c)) continue;
+        for (int axis = 0; axis < 3; ++axis)
+          for (int side = 0; side < 2; ++side) {
+            std::array<int, 3> nb = c;
+            nb[axis] += side ? 1 : -1;
+            if (in(nb)) continue;
+            const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+            std::array<std::int32_t, 4> q;
+            for (int corner = 0; corner < 4; ++corner) {
+              std::array<int, 3> g = c;
+              g[axis] += side;
+              g[u] += corner == 1 || corner == 2;
+              g[v] += corner >= 2;
+              q[corner] = vertex(g);
+            }
+            // (u, v) order gives the normal +axis; the low side is flipped.
+            if (side) {
+              mesh.triangles.push_back({q[0], q[1], q[2]});
+              mesh.triangles.push_back({q[0], q[2], q[3]});
+            } else {
+              mesh.triangles.push_back({q[0], q[2], q[1]});
+              mesh.triangles.push_back({q[0], q[3], q[2]});
+            }
+          }
+      }
+  return mesh;
+}
+
+TriMesh box(const Vec3& lo, const Vec3& hi) {
+  return grid_solid({lo.x(), hi.x()}, {lo.y(), hi.y()}, {lo.z(), hi.z()},
+                    [](int, int, int) { return true; });
+}
+
+// Mold halves of the box part [lo, hi] along +z, parted at mid-height, in a block 10 mm wider.
+std::array<TriMesh, 2> box_molds(const Vec3& lo, const Vec3& hi) {
+  const double mid = 0.5 * (lo.z() + hi.z());
+  const std::vector<double> xs = {lo.x() - 10, lo.x(), hi.x(), hi.x() + 10};
+  const std::vector<double> ys = {lo.y() - 10, lo.y(), hi.y(), hi.y() + 10};
+  auto not_part = [](int k_part) {
+    return [k_part](int i, int j, int k) { return !(i == 1 && j == 1 && k == k_part); };
+  };
+  return {grid_solid(xs, ys, {mid, hi.z(), hi.z() + 10}, not_part(0)),
+          grid_solid(xs, ys, {lo.z() - 10, lo.z(), mid}, not_part(1))};
+}
+
+// --- output folders ---
+
+struct PartSpec {
+  PartSpec(TriMesh m, const Vec3& d = Vec3::UnitZ(), std::vector<TriMesh> halves = {})
+      : mesh(std::move(m)), direction(d), molds(std::move(halves)) {}
+  TriMesh mesh;
+  Vec3 direction = Vec3::UnitZ();
+  std::vector<TriMesh> molds;  // empty, or {up, down}
+  double volume_mm3 = -1;      // < 0: the mesh's
+};
+
+struct Folder {
+  std::string outdir;
+  std::string input;  // input.stl beside outdir
+};
+
+// Writes OUTDIR/decomposition.json, parts/ and molds/ the way the contract describes them.
+Folder write_folder(const std::string& tag, const TriMesh& input,
+                    const std::vector<PartSpec>& parts, const nlohmann::json& order,
+                    const std::function<void(nlohmann::json&)>& edit = {}) {
+  const fs::path root = test::temp_dir("check-" + tag);
+  const fs::path out = root / "out";
+  fs::create_directories(out / "parts");
+  fs::create_directories(out / "molds");
+  write_stl((root / "input.stl").string(), input);
+  const Box3 bbox = bounding_box(input.vertices);
+  nlohmann::json j = {{"format", "dhfcast-decomposition"},
+                      {"version", 1},
+                      {"input",
+                       {{"path", "input.stl"},
+                        {"triangles", input.triangles.size()},
+                        {"volume_mm3", signed_volume(input)},
+                        {"bbox_mm",
+                         {{bbox.min.x(), bbox.min.y(), bbox.min.z()},
+                          {bbox.max.x(), bbox.max.y(), bbox.max.z()}}}}},
+                      {"parts", nlohmann::json::array()},
+                      {"assembly_order", order}};
+  for (std::size_t i = 0; i < parts.size(); ++i) {
+    char name[64];
+    std::snprintf(name, sizeof name, "parts/part_%03zu.stl", i);
+    write_stl((out / name).string(), parts[i].mesh);
+    const Vec3& d = parts[i].direction;
+    nlohmann::json jp = {{"id", i},
+                         {"mesh", name},
+                         {"direction", {d.x(), d.y(), d.z()}},
+                         {"volume_mm3", parts[i].volume_mm3 >= 0 ? parts[i].volume_mm3
+                                                                 : signed_volume(parts[i].mesh)}};
+    if (!parts[i].molds.empty()) {
+      char up[64], down[64];
+      std::snprintf(up, sizeof up, "molds/part_%03zu_up.stl", i);
+      std::snprintf(down, sizeof down, "molds/part_%03zu_down.stl", i);
+      write_stl((out / up).string(), parts[i].molds[0]);
+      write_stl((out / down).string(), parts[i].molds[1]);
+      jp["molds"] = {{"up", up}, {"down", down}};
+    }
+    j["parts"].push_back(jp);
+  }
+  if (edit) edit(j);
+  std::ofstream(out / "decomposition.json") << j.dump(2);
+  return {out.string(), (root / "input.stl").string()};
+}
+
+CheckReport run(const Folder& f, bool with_input = true) {
+  CheckOptions o;
+  o.outdir = f.outdir;
+  if (with_input) o.input_mesh = f.input;
+  // Fewer samples than the defaults: these solids are simple, and the suite should stay quick.
+  o.coverage_samples = 50000;
+  o.fidelity_samples = 20000;
+  o.mold_samples = 5000;
+  return check_output(o);
+}
+
+const CheckItem& item(const CheckReport& r, const std::string& name) {
+  for (const CheckItem& i : r.items)
+    if (i.name == name) return i;
+  throw std::runtime_error("no check named " + name);
+}
+
+double figure(const CheckItem& i, const std::string& key) {
+  for (const auto& [k, v] : i.figures)
+    if (k == key) return v;
+  throw std::runtime_error("check " + i.name + " has no figure " + key);
+}
+
+// The checks in `failing` fail, every other one passes or is skipped.
+void expect_failures(const CheckReport& r, const std::set<std::string>& failing) {
+  SCOPED_TRACE(format_text(r));
+  EXPECT_FALSE(r.passed());
+  for (const CheckItem& i : r.items) {
+    if (failing.contains(i.name)) {
+      EXPECT_FALSE(i.skipped) << i.name;
+      EXPECT_FALSE(i.passed) << i.name;
+    } else {
+      EXPECT_TRUE(i.skipped || i.passed) << i.name << ": " << i.summary;
+    }
+  }
+}
+
+// The reference decomposition: a 100 x 60 x 40 box cut at z = 20, both halves cast along +z,
+// the bottom one placed first.
+const Vec3 kLo(0, 0, 0), kHi(100, 60, 40), kCutLo(0, 0, 20), kCutHi(100, 60, 20);
+
+std::vector<PartSpec> two_boxes(bool molds) {
+  PartSpec bottom{box(kLo, kCutHi)}, top{box(kCutLo, kHi)};
+  if (molds) {
+    const auto mb = box_molds(kLo, kCutHi), mt = box_molds(kCutLo, kHi);
+    bottom.molds = {mb[0], mb[1]};
+    top.molds = {mt[0], mt[1]};
+  }
+  return {bottom, top};
+}
+
+TEST(Check, GoodFolderPassesEveryCheck) {
+  const Folder f = write_folder("good", box(kLo, kHi), two_boxes(true), {0, 1});
+  const CheckReport r = run(f);
+  SCOPED_TRACE(format_text(r));
+  EXPECT_TRUE(r.passed());
+  ASSERT_EQ(r.items.size(), 7u);
+  for (const CheckItem& i : r.items) {
+    EXPECT_FALSE(i.skipped) << i.name;
+    EXPECT_TRUE(i.passed) << i.name << ": " << i.summary;
+  }
+  const CheckItem& coverage = item(r, "coverage");
+  EXPECT_EQ(figure(coverage, "overlap_fraction"), 0.0);
+  EXPECT_EQ(figure(coverage, "gap_fraction"), 0.0);
+  EXPECT_EQ(figure(coverage, "outside_fraction"), 0.0);
+  EXPECT_EQ(figure(coverage, "covered_once_fraction"), 1.0);
+  EXPECT_EQ(figure(coverage, "samples"), 50000.0);
+  EXPECT_EQ(figure(item(r, "dhf"), "lines"), 4000.0);
+  EXPECT_EQ(figure(item(r, "assembly"), "order_exists"), 1.0);
+  EXPECT_GE(figure(item(r, "molds"), "min_surface_coverage"), 0.999);
+  EXPECT_LT(figure(item(r, "fidelity"), "parts_to_input_max_mm"), 1e-3);
+  EXPECT_LT(figure(item(r, "fidelity"), "input_to_parts_max_mm"), 1e-3);
+
+  const std::string text = format_text(r);
+  EXPECT_EQ(text.rfind("PASS contract", 0), 0u) << text;
+  EXPECT_NE(text.find("\nPASS: 7 checks passed\n"), std::string::npos) << text;
+  const nlohmann::json j = nlohmann::json::parse(format_json(r));
+  EXPECT_TRUE(j["passed"].get<bool>());
+  ASSERT_EQ(j["checks"].size(), 7u);
+  EXPECT_EQ(j["checks"][2]["name"], "coverage");
+  EXPECT_EQ(j["checks"][2]["status"], "pass");
+  EXPECT_EQ(j["checks"][2]["figures"]["gap_fraction"], 0.0);
+}
+
+TEST(Check, SameFiguresOnOneThread) {
+  const Folder f = write_folder("threads", box(kLo, kHi), two_boxes(true), {0, 1});
+  const std::string many = format_json(run(f));
+  oneapi::tbb::global_control one(oneapi::tbb::global_control::max_allowed_parallelism, 1);
+  EXPECT_EQ(format_json(run(f)), many);
+}
+
+TEST(Check, WithoutInputFidelityIsSkippedAndTheRestStillRuns) {
+  const Folder f = write_folder("no-input", box(kLo, kHi), two_boxes(false), {0, 1});
+  const CheckReport r = run(f, false);
+  SCOPED_TRACE(format_text(r));
+  EXPECT_TRUE(r.passed());
+  EXPECT_TRUE(item(r, "fidelity").skipped);
+  EXPECT_TRUE(item(r, "molds").skipped);
+  EXPECT_FALSE(item(r, "coverage").skipped);
+  EXPECT_EQ(figure(item(r, "coverage"), "volume_error"), 0.0);  // against the json's input volume
+}
+
+// A U: base [0, 30] x [0, 10] x [0, 10] with prongs x in [0, 10] and [20, 30] up to z = 30.
+TriMesh u_shape() {
+  return grid_solid({0, 10, 20, 30}, {0, 10}, {0, 10, 30},
+                    [](int i, int, int k) { return k == 0 || i != 1; });
+}
+
+TEST(Check, PartThatIsNotADoubleHeightFieldFailsOnlyDhf) {
+  // Along x, lines through the prongs cross the 10 mm wide opening: 2 intervals, 5 mm deep gap.
+  const Folder bad = write_folder("u-x", u_shape(), {{u_shape(), Vec3::UnitX()}}, {0});
+  const CheckReport r = run(bad);
+  expect_failures(r, {"dhf"});
+  const CheckItem& dhf = item(r, "dhf");
+  // Lines with z in (10, 30) of the footprint y in [0, 10], z in [0, 30] are violations: 2/3.
+  EXPECT_NEAR(figure(dhf, "max_violation_fraction"), 2.0 / 3.0, 0.05);
+  EXPECT_NEAR(figure(dhf, "max_depth_mm"), 5.0, 0.2);
+  EXPECT_NE(dhf.summary.find("part 0"), std::string::npos) << dhf.summary;
+
+  // The same U along z (its opening) is a double height field.
+  const Folder good = write_folder("u-z", u_shape(), {{u_shape(), Vec3::UnitZ()}}, {0});
+  EXPECT_TRUE(run(good).passed()) << format_text(run(good));
+}
+
+TEST(Check, GapWithinEpsilonIsTolerated) {
+  // A U whose opening is 0.5 mm wide: the gap is at most 0.25 mm from the surface.
+  const TriMesh narrow = grid_solid({0, 10, 10.5, 20.5}, {0, 10}, {0, 10, 30},
+                                    [](int i, int, int k) { return k == 0 || i != 1; });
+  const CheckReport r = run(write_folder("narrow", narrow, {{narrow, Vec3::UnitX()}}, {0}));
+  SCOPED_TRACE(format_text(r));
+  EXPECT_TRUE(item(r, "dhf").passed);
+  EXPECT_EQ(figure(item(r, "dhf"), "violating_lines"), 0.0);
+}
+
+TEST(Check, OverlappingPartsFailCoverage) {
+  // The bottom part reaches z = 25 and the top one starts at z = 15: 10 of 40 mm overlap.
+  std::vector<PartSpec> parts = {{box(kLo, Vec3(100, 60, 25))}, {box(Vec3(0, 0, 15), kHi)}};
+  const CheckReport r = run(write_folder("overlap", box(kLo, kHi), parts, {0, 1}));
+  // The top part also ends inside the bottom one, so its way in is blocked too.
+  expect_failures(r, {"coverage", "assembly"});
+  EXPECT_NEAR(figure(item(r, "coverage"), "overlap_fraction"), 0.25, 0.02);
+  EXPECT_NEAR(figure(item(r, "coverage"), "volume_error"), 0.25, 1e-9);
+  EXPECT_EQ(figure(item(r, "coverage"), "gap_fraction"), 0.0);
+}
+
+TEST(Check, MissingChunkFailsCoverage) {
+  // The top part stops at x = 80: a 20 x 60 x 20 chunk of the input is in no part.
+  std::vector<PartSpec> parts = {{box(kLo, kCutHi)}, {box(kCutLo, Vec3(80, 60, 40))}};
+  const CheckReport r = run(write_folder("gap", box(kLo, kHi), parts, {0, 1}));
+  // The missing chunk also leaves a 20 mm step between the surfaces.
+  expect_failures(r, {"coverage", "fidelity"});
+  EXPECT_NEAR(figure(item(r, "coverage"), "gap_fraction"), 0.1, 0.01);
+  EXPECT_EQ(figure(item(r, "coverage"), "overlap_fraction"), 0.0);
+  EXPECT_NEAR(figure(item(r, "fidelity"), "input_to_parts_max_mm"), 20.0, 0.5);
+}
+
+TEST(Check, AssemblyOrderThroughAnEarlierPartFails) {
+  // Top first: the bottom part then arrives from above, through it.
+  const CheckReport r = run(write_folder("order", box(kLo, kHi), two_boxes(false), {1, 0}));
+  expect_failures(r, {"assembly"});
+  const CheckItem& a = item(r, "assembly");
+  EXPECT_GT(figure(a, "blocked_samples"), 0.0);
+  EXPECT_EQ(figure(a, "order_exists"), 1.0);
+  EXPECT_NE(a.summary.find("a collision-free order exists: 0 1"), std::string::npos) << a.summary;
+  EXPECT_NEAR(figure(a, "max_inside_mm"), 20.0, 0.1);
+
+  // With the top part cast along -z it must arrive from below: no order works.
+  std::vector<PartSpec> parts = two_boxes(false);
+  parts[1].direction = -Vec3::UnitZ();
+  const CheckReport none = run(write_folder("no-order", box(kLo, kHi), parts, {0, 1}));
+  expect_failures(none, {"assembly"});
+  EXPECT_EQ(figure(item(none, "assembly"), "order_exists"), 0.0);
+}
+
+TEST(Check, SideBySidePartsSlideAlongTheirInterface) {
+  // Cut at x = 50, both along +z: each slides down along the shared face without entering.
+  std::vector<PartSpec> parts = {{box(kLo, Vec3(50, 60, 40))}, {box(Vec3(50, 0, 0), kHi)}};
+  const CheckReport r = run(write_folder("side", box(kLo, kHi), parts, {1, 0}));
+  SCOPED_TRACE(format_text(r));
+  EXPECT_TRUE(r.passed());
+  EXPECT_EQ(figure(item(r, "assembly"), "blocked_samples"), 0.0);
+}
+
+TEST(Check, OpenPartMeshFailsSolids) {
+  std::vector<PartSpec> parts = two_boxes(false);
+  // Drop one triangle of the bottom part's top face, an interface meshed finely enough that
+  // the hole does not move the fidelity's 99th percentile.
+  parts[0].mesh =
+      grid_solid({0, 10, 20, 30, 40, 50, 60, 70, 80, 90, 100}, {0, 10, 20, 30, 40, 50, 60}, {0, 20},
+                 [](int, int, int) { return true; });
+  TriMesh& m = parts[0].mesh;
+  const auto top = std::ranges::find_if(m.triangles, [&](const Tri& t) {
+    return std::ranges::all_of(t, [&](std::int32_t v) { return m.vertices[v].z() == 20.0; });
+  });
+  ASSERT_NE(top, m.triangles.end());
+  m.triangles.erase(top);
+  parts[0].volume_mm3 = 100 * 60 * 20;
+  const CheckReport r = run(write_folder("open", box(kLo, kHi), parts, {0, 1}));
+  expect_failures(r, {"solids"});
+  EXPECT_NE(item(r, "solids").summary.find("not closed"), std::string::npos)
+      << item(r, "solids").summary;
+}
+
+TEST(Check, WrongVolumeInJsonFailsSolids) {
+  std::vector<PartSpec> parts = two_boxes(false);
+  parts[1].volume_mm3 = 1.001 * 100 * 60 * 20;
+  const CheckReport r = run(write_folder("volume", box(kLo, kHi), parts, {0, 1}));
+  expect_failures(r, {"solids"});
+  EXPECT_NEAR(figure(item(r, "solids"), "max_volume_error"), 1e-3, 1e-9);
+}
+
+TEST(Check, PartTouchingItselfAlongAnEdgeIsASolid) {
+  // Two cubes sharing only the edge x = 10, z = 10: welded, that edge has four triangles.
+  const TriMesh touching =
+      grid_solid({0, 10, 20}, {0, 10}, {0, 10, 20}, [](int i, int, int k) { return i == k; });
+  ASSERT_FALSE(validate_mesh(touching).ok());
+  const CheckReport r = run(write_folder("touch", touching, {{touching}}, {0}), false);
+  SCOPED_TRACE(format_text(r));
+  EXPECT_TRUE(item(r, "solids").passed);
+}
+
+// An L in the y-z section: a slab y in [0, 60], z in [10, 20], and below it a foot y in [20, 60],
+// z in [0, 10]. Cast along +z, the mould's down half must fill the space under the overhang.
+const std::vector<double> kLxs = {-10, 0, 100, 110}, kLys = {-10, 0, 20, 60, 70},
+                          kLzs = {-10, 0, 10, 20, 30};
+bool l_part(int i, int j, int k) {
+  return i == 1 && ((j == 1 && k == 2) || (j == 2 && (k == 1 || k == 2)));
+}
+
+TEST(Check, MoldHalfWithAnUndercutFailsMolds) {
+  const TriMesh part = grid_solid(kLxs, kLys, kLzs, l_part);
+  const TriMesh up =
+      grid_solid(kLxs, kLys, kLzs, [](int i, int j, int k) { return k >= 2 && !l_part(i, j, k); });
+  const TriMesh down =
+      grid_solid(kLxs, kLys, kLzs, [](int i, int j, int k) { return k <= 1 && !l_part(i, j, k); });
+  const CheckReport good =
+      run(write_folder("molds", part, {{part, Vec3::UnitZ(), {up, down}}}, {0}));
+  SCOPED_TRACE(format_text(good));
+  EXPECT_TRUE(good.passed());
+  EXPECT_FALSE(item(good, "molds").skipped);
+
+  // The up half also takes the layer z in [0, 10] on the overhang's side (y < 20): pulled up, it
+  // runs into the overhang.
+  auto undercut = [](int i, int j, int k) { return k == 1 && j <= 1 && !l_part(i, j, k); };
+  const TriMesh bad_up = grid_solid(kLxs, kLys, kLzs, [&](int i, int j, int k) {
+    return (k >= 2 && !l_part(i, j, k)) || undercut(i, j, k);
+  });
+  const TriMesh bad_down = grid_solid(kLxs, kLys, kLzs, [&](int i, int j, int k) {
+    return k <= 1 && !l_part(i, j, k) && !undercut(i, j, k);
+  });
+  const CheckReport bad =
+      run(write_folder("undercut", part, {{part, Vec3::UnitZ(), {bad_up, bad_down}}}, {0}));
+  expect_failures(bad, {"molds"});
+  EXPECT_GT(figure(item(bad, "molds"), "blocked_samples"), 0.0);
+  EXPECT_NE(item(bad, "molds").summary.find("up half"), std::string::npos)
+      << item(bad, "molds").summary;
+
+  // A mold file that is not there fails the molds but leaves the parts' checks running.
+  const CheckReport missing = run(write_folder(
+      "no-mold", part, {{part, Vec3::UnitZ(), {up, down}}}, {0},
+      [](nlohmann::json& j) { j["parts"][0]["molds"]["down"] = "molds/nowhere.stl"; }));
+  expect_failures(missing, {"contract", "solids", "molds"});
+  EXPECT_TRUE(item(missing, "dhf").passed);
+}
+
+TEST(Check, OrderThatIsNotAPermutationFailsContract) {
+  const CheckReport r = run(write_folder("contract", box(kLo, kHi), two_boxes(false), {0, 0}));
+  expect_failures(r, {"contract"});
+  EXPECT_TRUE(item(r, "assembly").skipped);
+  EXPECT_NE(item(r, "contract").summary.find("not a permutation"), std::string::npos);
+}
+
+TEST(Check, ContractViolationsAreFoundAndStopTheGeometricChecksWhenNeeded) {
+  auto contract_of = [](const std::string& tag, std::function<void(nlohmann::json&)> edit) {
+    return item(run(write_folder(tag, box(kLo, kHi), two_boxes(false), {0, 1}, edit)), "contract");
+  };
+  EXPECT_FALSE(contract_of("fmt", [](nlohmann::json& j) { j["format"] = "other"; }).passed);
+  EXPECT_FALSE(contract_of("ver", [](nlohmann::json& j) { j["version"] = 2; }).passed);
+  EXPECT_FALSE(contract_of("dir", [](nlohmann::json& j) {
+                 j["parts"][1]["direction"] = {0, 0, 2};
+               }).passed);
+  EXPECT_FALSE(contract_of("ids", [](nlohmann::json& j) { j["parts"][1]["id"] = 5; }).passed);
+  EXPECT_FALSE(
+      contract_of("vol", [](nlohmann::json& j) { j["parts"][0].erase("volume_mm3"); }).passed);
+
+  // A part file that does not exist: the geometric checks cannot run.
+  const CheckReport missing =
+      run(write_folder("missing", box(kLo, kHi), two_boxes(false), {0, 1},
+                       [](nlohmann::json& j) { j["parts"][1]["mesh"] = "parts/nowhere.stl"; }));
+  EXPECT_FALSE(missing.passed());
+  EXPECT_FALSE(item(missing, "contract").passed);
+  EXPECT_FALSE(item(missing, "solids").passed);
+  EXPECT_TRUE(item(missing, "coverage").skipped);
+
+  // Not JSON at all: a failed contract, not an exception.
+  const Folder f = write_folder("garbage", box(kLo, kHi), two_boxes(false), {0, 1});
+  std::ofstream(fs::path(f.outdir) / "decomposition.json") << "{\"format\": ";
+  const CheckReport garbage = run(f);
+  EXPECT_FALSE(item(garbage, "contract").passed);
+  EXPECT_NE(item(garbage, "contract").summary.find("not valid JSON"), std::string::npos);
+  EXPECT_TRUE(item(garbage, "dhf").skipped);
+}
+
+TEST(Check, UnreadableFolderOrBadOptionsThrow) {
+  CheckOptions o;
+  o.outdir = test::temp_dir("check-empty") + "/absent";
+  try {
+    check_output(o);
+    FAIL() << "no exception";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::Io);
+  }
+  o.outdir = test::temp_dir("check-empty");  // exists, but has no decomposition.json
+  try {
+    check_output(o);
+    FAIL() << "no exception";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::Io);
+  }
+  o.epsilon_mm = 0;
+  try {
+    check_output(o);
+    FAIL() << "no exception";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::InvalidOptions);
+  }
+}
+
+// --- real meshes ---
+
+TriMesh translated(TriMesh m, const Vec3& t) {
+  for (Vec3& p : m.vertices) p += t;
+  return m;
+}
+
+TEST(CheckRealMesh, ElephantAsItsOwnPartCoversItExactly) {
+  const std::string path = test::cgal_mesh("elephant.off");
+  if (path.empty()) GTEST_SKIP() << "CGAL's data set (libcgal-demo) is not installed";
+  const TriMesh elephant = test::load_scaled(path, 150.0);
+  const CheckReport r = run(write_folder("elephant", elephant, {{elephant}}, {0}));
+  SCOPED_TRACE(format_text(r));
+  for (const char* name : {"contract", "solids", "coverage", "assembly", "fidelity"})
+    EXPECT_TRUE(item(r, name).passed) << name;
+  const CheckItem& coverage = item(r, "coverage");
+  EXPECT_EQ(figure(coverage, "overlap_fraction"), 0.0);
+  EXPECT_EQ(figure(coverage, "gap_fraction"), 0.0);
+  EXPECT_EQ(figure(coverage, "outside_fraction"), 0.0);
+  // The STL holds float coordinates: the surfaces agree to float precision.
+  EXPECT_LT(figure(item(r, "fidelity"), "input_to_parts_max_mm"), 1e-4);
+
+  // Moved by 2 mm, the part leaves some of the input uncovered and sticks out elsewhere.
+  const TriMesh moved = translated(elephant, Vec3(2, 0, 0));
+  const CheckReport m = run(write_folder("elephant-moved", elephant, {{moved}}, {0}));
+  SCOPED_TRACE(format_text(m));
+  EXPECT_FALSE(item(m, "coverage").passed);
+  EXPECT_GT(figure(item(m, "coverage"), "gap_fraction"), 0.005);
+  // A translation keeps the volume: what leaves the input equals what it leaves uncovered, up
+  // to sampling noise.
+  EXPECT_NEAR(figure(item(m, "coverage"), "gap_fraction"),
+              figure(item(m, "coverage"), "outside_fraction"), 0.03);
+  EXPECT_FALSE(item(m, "fidelity").passed);
+  EXPECT_TRUE(item(m, "solids").passed);
+}
+
+TEST(CheckRealMesh, ConvexMeshIsADoubleHeightFieldAlongAnyDirection) {
+  const std::string path = test::cgal_mesh("ellipsoid.off");
+  if (path.empty()) GTEST_SKIP() << "CGAL's data set (libcgal-demo) is not installed";
+  const TriMesh ellipsoid = test::load_scaled(path, 100.0);
+  const Vec3 d = Vec3(0.3, -0.5, 0.8).normalized();
+  const CheckReport r = run(write_folder("ellipsoid", ellipsoid, {{ellipsoid, d}}, {0}));
+  SCOPED_TRACE(format_text(r));
+  EXPECT_TRUE(r.passed());
+  EXPECT_EQ(figure(item(r, "dhf"), "lines"), 2000.0);
+  EXPECT_EQ(figure(item(r, "dhf"), "violating_lines"), 0.0);
+}
+
+}  // namespace
+}  // namespace dhfcast

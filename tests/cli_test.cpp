@@ -1,0 +1,145 @@
+// Runs the dhfcast executable as a user would: bad input gets a one-line error, a non-zero exit
+// code and no output folder.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "dhfcast/mesh.h"
+#include "support/test_support.h"
+
+namespace fs = std::filesystem;
+using namespace dhfcast;
+
+namespace {
+
+struct RunResult {
+  int exit_code = -1;
+  std::string err;
+};
+
+RunResult run(const std::string& args) {
+  const std::string dir = test::temp_dir("cli");
+  const std::string err_path = dir + "/stderr.txt";
+  const std::string cmd = test::cli_path() + " " + args + " >/dev/null 2>" + err_path;
+  const int status = std::system(cmd.c_str());
+  RunResult r;
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  std::ifstream f(err_path);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  r.err = ss.str();
+  return r;
+}
+
+void write_text(const std::string& path, const std::string& text) {
+  std::ofstream f(path, std::ios::binary);
+  f << text;
+}
+
+// An OBJ cube with 12 triangles; `drop` removes faces from the end, `extra` appends lines.
+std::string cube_obj(int drop = 0, const std::string& extra = "") {
+  std::string s =
+      "v 0 0 0\nv 10 0 0\nv 10 10 0\nv 0 10 0\nv 0 0 10\nv 10 0 10\nv 10 10 10\nv 0 10 10\n";
+  const char* faces[] = {"f 1 3 2", "f 1 4 3", "f 5 6 7", "f 5 7 8", "f 1 2 6", "f 1 6 5",
+                         "f 2 3 7", "f 2 7 6", "f 3 4 8", "f 3 8 7", "f 4 1 5", "f 4 5 8"};
+  for (int i = 0; i < 12 - drop; ++i) s += std::string(faces[i]) + "\n";
+  return s + extra;
+}
+
+class BadInput : public ::testing::TestWithParam<std::pair<std::string, std::string>> {};
+
+TEST_P(BadInput, OneLineErrorNonZeroExitNoOutput) {
+  const auto& [file_name, content] = GetParam();
+  const std::string dir = test::temp_dir("bad");
+  const std::string input = dir + "/" + file_name;
+  write_text(input, content);
+  const std::string out = dir + "/out";
+  const RunResult r = run("decompose " + input + " -o " + out + " --tets 2000");
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_FALSE(fs::exists(out));
+  // Exactly one line, naming the file.
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_NE(r.err.find("error"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(file_name), std::string::npos) << r.err;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir))
+    EXPECT_TRUE(e.path().filename() == file_name) << "left behind: " << e.path();
+}
+
+std::string truncated_binary_stl() {
+  TriMesh box;
+  box.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  box.triangles = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  const std::string dir = test::temp_dir("stl");
+  write_stl(dir + "/t.stl", box);
+  std::ifstream f(dir + "/t.stl", std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  return bytes.substr(0, bytes.size() - 30);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, BadInput,
+    ::testing::Values(
+        std::make_pair("open.obj", cube_obj(1)),
+        std::make_pair("nonmanifold_edge.obj",
+                       cube_obj(0, "v 10 0 -10\nf 2 3 9\nf 3 2 9\n")),
+        std::make_pair("self_intersecting.obj",
+                       cube_obj() +
+                           "v 5 5 5\nv 15 5 5\nv 15 15 5\nv 5 15 5\nv 5 5 15\nv 15 5 15\n"
+                           "v 15 15 15\nv 5 15 15\n"
+                           "f 9 11 10\nf 9 12 11\nf 13 14 15\nf 13 15 16\nf 9 10 14\n"
+                           "f 9 14 13\nf 10 11 15\nf 10 15 14\nf 11 12 16\nf 11 16 15\n"
+                           "f 12 9 13\nf 12 13 16\n"),
+        std::make_pair("truncated.stl", truncated_binary_stl()),
+        std::make_pair("nan.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 nan\n"
+                                  "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"),
+        std::make_pair("empty.stl", std::string()),
+        std::make_pair("garbage.off", "OFF\n3 1 0\n0 0 0\n1 zero 0\n")),
+    [](const auto& info) { return fs::path(info.param.first).stem().string(); });
+
+TEST(Cli, MissingFileIsAnIoError) {
+  const std::string dir = test::temp_dir("missing");
+  const RunResult r = run("decompose " + dir + "/nope.stl -o " + dir + "/out");
+  EXPECT_EQ(r.exit_code, 4) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/out"));
+}
+
+TEST(Cli, BadOptionIsAUsageError) {
+  const std::string dir = test::temp_dir("opt");
+  write_text(dir + "/cube.obj", cube_obj());
+  const RunResult r = run("decompose " + dir + "/cube.obj -o " + dir + "/out --epsilon -1");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("epsilon"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/out"));
+}
+
+TEST(Cli, ExistingOutputIsNotOverwrittenWithoutForce) {
+  const std::string dir = test::temp_dir("exists");
+  write_text(dir + "/cube.obj", cube_obj());
+  fs::create_directories(dir + "/out");
+  write_text(dir + "/out/keep.txt", "x");
+  const RunResult r = run("decompose " + dir + "/cube.obj -o " + dir + "/out");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("--force"), std::string::npos) << r.err;
+  EXPECT_TRUE(fs::exists(dir + "/out/keep.txt"));
+}
+
+TEST(Cli, CubeGivesOnePartAndTheContract) {
+  const std::string dir = test::temp_dir("cube");
+  write_text(dir + "/cube.obj", cube_obj());
+  const RunResult r = run("decompose " + dir + "/cube.obj -o " + dir +
+                          "/out --tets 2000 --directions 64 --restarts 2 --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(r.err.empty()) << r.err;
+  EXPECT_TRUE(fs::exists(dir + "/out/decomposition.json"));
+  EXPECT_TRUE(fs::exists(dir + "/out/parts/part_000.stl"));
+  EXPECT_FALSE(fs::exists(dir + "/out/parts/part_001.stl"));
+  const TriMesh part = load_solid(dir + "/out/parts/part_000.stl").mesh;
+  EXPECT_NEAR(signed_volume(part), 1000.0, 10.0);
+}
+
+}  // namespace

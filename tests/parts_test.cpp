@@ -1,0 +1,791 @@
+#include "dhfcast/parts.h"
+
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <numeric>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "dhfcast/error.h"
+#include "support/test_support.h"
+
+namespace dhfcast {
+namespace {
+
+using Cell = std::array<int, 3>;
+
+// A box of nx * ny * nz cubes of side cell_mm, each split into 6 positively oriented tets (the
+// Freudenthal split: conforming across cubes). Cells are numbered x fastest, z slowest, and a
+// cell's tets are consecutive, so cell c owns tets 6c .. 6c + 5.
+struct Grid {
+  std::array<int, 3> n;
+  TetMesh mesh;
+  std::vector<Cell> cell_of_tet;
+};
+
+// jitter_rel > 0 moves every vertex by up to jitter_rel * cell_mm along each axis
+// (pseudo-randomly), so no ray or face is axis-aligned any more.
+Grid make_grid(int nx, int ny, int nz, double cell_mm, double jitter_rel = 0.0) {
+  Grid g{{nx, ny, nz}, {}, {}};
+  auto vertex = [&](int x, int y, int z) { return (z * (ny + 1) + y) * (nx + 1) + x; };
+  std::uint32_t seed = 12345;
+  auto jitter = [&] {
+    seed = seed * 1664525u + 1013904223u;
+    return jitter_rel * cell_mm * (static_cast<double>(seed >> 8) / double(1 << 24) * 2.0 - 1.0);
+  };
+  for (int z = 0; z <= nz; ++z)
+    for (int y = 0; y <= ny; ++y)
+      for (int x = 0; x <= nx; ++x) {
+        const Vec3 offset(jitter(), jitter(), jitter());
+        g.mesh.vertices.push_back(Vec3(x, y, z) * cell_mm + offset);
+      }
+  std::array<int, 3> axes = {0, 1, 2};
+  std::vector<std::array<int, 3>> permutations;
+  do permutations.push_back(axes);
+  while (std::next_permutation(axes.begin(), axes.end()));
+  for (int z = 0; z < nz; ++z)
+    for (int y = 0; y < ny; ++y)
+      for (int x = 0; x < nx; ++x)
+        for (const auto& perm : permutations) {
+          Cell c = {x, y, z};
+          Tet tet;
+          tet[0] = vertex(c[0], c[1], c[2]);
+          for (int k = 0; k < 3; ++k) {
+            ++c[perm[k]];
+            tet[k + 1] = vertex(c[0], c[1], c[2]);
+          }
+          // Orient by the undisturbed cube, so jitter can only show up as a failed check.
+          const Vec3 e1 = Vec3::Unit(perm[0]), e2 = e1 + Vec3::Unit(perm[1]);
+          if (e1.dot(e2.cross(Vec3::Ones())) < 0) std::swap(tet[1], tet[2]);
+          g.mesh.tets.push_back(tet);
+          EXPECT_GT(tet_volume(g.mesh, static_cast<std::int32_t>(g.mesh.tets.size()) - 1), 0.0);
+          g.cell_of_tet.push_back({x, y, z});
+        }
+  build_tet_adjacency(g.mesh);
+  return g;
+}
+
+// Per-tet values from a function of the tet's cell.
+std::vector<std::int32_t> per_cell(const Grid& g, const std::function<int(const Cell&)>& f) {
+  std::vector<std::int32_t> out;
+  for (const Cell& c : g.cell_of_tet) out.push_back(f(c));
+  return out;
+}
+
+std::vector<std::int32_t> zeros_like(const TetMesh& mesh) {
+  return std::vector<std::int32_t>(mesh.tets.size(), 0);
+}
+std::vector<std::int32_t> zeros(const Grid& g) { return zeros_like(g.mesh); }
+
+// Undirected edge -> (uses a -> b with a < b, uses b -> a).
+std::map<std::pair<int, int>, std::pair<int, int>> edge_uses(const TriMesh& mesh) {
+  std::map<std::pair<int, int>, std::pair<int, int>> uses;
+  for (const Tri& t : mesh.triangles)
+    for (int c = 0; c < 3; ++c) {
+      const int a = t[c], b = t[(c + 1) % 3];
+      auto& u = uses[{std::min(a, b), std::max(a, b)}];
+      (a < b ? u.first : u.second)++;
+    }
+  return uses;
+}
+
+// Every edge has exactly two faces, one in each direction, and the faces around every vertex
+// form a single fan; no degenerate triangles; every vertex used.
+void expect_closed_manifold(const TriMesh& mesh) {
+  for (const auto& [edge, use] : edge_uses(mesh)) {
+    EXPECT_EQ(use.first, 1) << "edge " << edge.first << "-" << edge.second;
+    EXPECT_EQ(use.second, 1) << "edge " << edge.first << "-" << edge.second;
+  }
+  // Around vertex v, face (v, a, b) links a to b; one fan means one cycle through all of them.
+  std::vector<std::map<int, int>> next(mesh.vertices.size());
+  std::vector<int> faces_at(mesh.vertices.size(), 0);
+  for (const Tri& t : mesh.triangles) {
+    EXPECT_TRUE(t[0] != t[1] && t[1] != t[2] && t[2] != t[0]);
+    for (int c = 0; c < 3; ++c) {
+      next[t[c]][t[(c + 1) % 3]] = t[(c + 2) % 3];
+      ++faces_at[t[c]];
+    }
+  }
+  for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
+    ASSERT_GT(faces_at[v], 0) << "unused vertex " << v;
+    ASSERT_EQ(static_cast<int>(next[v].size()), faces_at[v]) << "vertex " << v;
+    int steps = 0;
+    const int first = next[v].begin()->first;
+    int a = first;
+    do {
+      const auto it = next[v].find(a);
+      ASSERT_NE(it, next[v].end()) << "open fan at vertex " << v;
+      a = it->second;
+      ++steps;
+    } while (a != first && steps <= faces_at[v]);
+    EXPECT_EQ(steps, faces_at[v]) << "vertex " << v << " has several fans";
+  }
+}
+
+double sum_tet_volumes(const TetMesh& mesh, const std::vector<std::int32_t>& tets) {
+  double v = 0;
+  for (const std::int32_t t : tets) v += tet_volume(mesh, t);
+  return v;
+}
+
+int euler_characteristic(const TriMesh& mesh) {
+  return static_cast<int>(mesh.vertices.size()) - static_cast<int>(edge_uses(mesh).size()) +
+         static_cast<int>(mesh.triangles.size());
+}
+
+// Every tet in exactly one part, tets ascending, volumes and meshes consistent.
+void expect_valid_parts(const Grid& g, const std::vector<Part>& parts) {
+  std::vector<int> owner(g.mesh.tets.size(), -1);
+  double total = 0;
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    SCOPED_TRACE("part " + std::to_string(p));
+    const Part& part = parts[p];
+    EXPECT_EQ(part.id, static_cast<std::int32_t>(p));
+    EXPECT_TRUE(std::is_sorted(part.tets.begin(), part.tets.end()));
+    for (const std::int32_t t : part.tets) {
+      EXPECT_EQ(owner[t], -1);
+      owner[t] = static_cast<int>(p);
+    }
+    EXPECT_NEAR(part.volume_mm3, sum_tet_volumes(g.mesh, part.tets), 1e-9);
+    EXPECT_NEAR(signed_volume(part.mesh), part.volume_mm3, 1e-6 * part.volume_mm3);
+    EXPECT_NEAR(part.direction.norm(), 1.0, 1e-12);
+    expect_closed_manifold(part.mesh);
+    if (p > 0) {
+      EXPECT_TRUE(parts[p - 1].volume_mm3 > part.volume_mm3 + 1e-9 ||
+                  (std::abs(parts[p - 1].volume_mm3 - part.volume_mm3) < 1e-9 &&
+                   parts[p - 1].tets.front() < part.tets.front()));
+    }
+    total += part.volume_mm3;
+  }
+  EXPECT_EQ(std::count(owner.begin(), owner.end(), -1), 0);
+  EXPECT_NEAR(total, total_volume(g.mesh), 1e-6 * total_volume(g.mesh));
+}
+
+const Vec3 kX = Vec3::UnitX(), kY = Vec3::UnitY(), kZ = Vec3::UnitZ();
+
+TEST(ExtractParts, TwoHalvesOfABoxAreTwoClosedOutwardParts) {
+  const Grid g = make_grid(4, 2, 2, 10.0);
+  const auto label = per_cell(g, [](const Cell& c) { return c[0] < 2 ? 0 : 1; });
+  const auto parts = extract_parts(g.mesh, label, zeros(g), {{-kX, 3.0 * kX}});
+  ASSERT_EQ(parts.size(), 2u);
+  expect_valid_parts(g, parts);
+  // Equal volumes: the part holding tet 0 (label 0, x < 20) comes first.
+  EXPECT_EQ(parts[0].tets.front(), 0);
+  EXPECT_EQ(parts[0].direction_index, 0);
+  EXPECT_EQ(parts[1].direction_index, 1);
+  EXPECT_EQ(parts[0].direction, -kX);
+  EXPECT_EQ(parts[1].direction, kX);  // normalized
+  for (const Part& p : parts) {
+    EXPECT_NEAR(p.volume_mm3, 8000.0, 1e-9);
+    EXPECT_EQ(p.mesh.vertices.size(), 26u);  // 27 grid points less the centre
+    EXPECT_EQ(euler_characteristic(p.mesh), 2);
+  }
+}
+
+TEST(ExtractParts, LargerPartComesFirst) {
+  const Grid g = make_grid(3, 1, 1, 5.0);
+  const auto label = per_cell(g, [](const Cell& c) { return c[0] == 0 ? 0 : 1; });
+  const auto parts = extract_parts(g.mesh, label, zeros(g), {{kZ, kZ}});
+  ASSERT_EQ(parts.size(), 2u);
+  expect_valid_parts(g, parts);
+  EXPECT_EQ(parts[0].direction_index, 1);
+  EXPECT_NEAR(parts[0].volume_mm3, 250.0, 1e-9);
+  EXPECT_NEAR(parts[1].volume_mm3, 125.0, 1e-9);
+}
+
+int count_vertices_at(const TriMesh& mesh, const Vec3& p) {
+  return static_cast<int>(std::count(mesh.vertices.begin(), mesh.vertices.end(), p));
+}
+
+TEST(ExtractParts, PartTouchingItselfAlongAnEdgeIsManifold) {
+  // In the x-z plane (z up), one cell thick in y; cells (1,1) and (2,2) of part P touch along
+  // the edge x = z = 2 only, and P joins them around the left and the top:
+  //   P P P 2
+  //   P 1 P 2
+  //   P P 1 2
+  //   2 2 2 2
+  const Grid g = make_grid(4, 1, 4, 1.0);
+  const auto label = per_cell(g, [](const Cell& c) {
+    const int x = c[0], z = c[2];
+    if ((x == 2 && z == 1) || (x == 1 && z == 2)) return 1;
+    return (x == 3 || z == 0) ? 2 : 0;
+  });
+  const auto parts = extract_parts(g.mesh, label, zeros(g), {{kZ, kZ, kZ}});
+  ASSERT_EQ(parts.size(), 4u);  // label 1 is two cubes that share an edge only
+  expect_valid_parts(g, parts);
+  const Part& ring = parts[1];
+  ASSERT_EQ(ring.direction_index, 0);
+  // The edge's end vertices are on the outside: two fans each, one per cube.
+  EXPECT_EQ(count_vertices_at(ring.mesh, Vec3(2, 0, 2)), 2);
+  EXPECT_EQ(count_vertices_at(ring.mesh, Vec3(2, 1, 2)), 2);
+  // Cut apart along the edge, the loop is a bent bar: a sphere.
+  EXPECT_EQ(euler_characteristic(ring.mesh), 2);
+  for (const Part& p : {parts[2], parts[3]}) {
+    EXPECT_EQ(p.mesh.vertices.size(), 8u);
+    EXPECT_EQ(p.mesh.triangles.size(), 12u);
+  }
+}
+
+TEST(ExtractParts, PartTouchingItselfAtAVertexIsManifold) {
+  // Two opposite corner cubes of a 2x2x2 block touch at its centre only (two parts); the other
+  // six cubes form a ring whose surface pinches at the centre.
+  const Grid g = make_grid(2, 2, 2, 1.0);
+  const auto label =
+      per_cell(g, [](const Cell& c) { return (c[0] == c[1] && c[1] == c[2]) ? 0 : 1; });
+  const auto parts = extract_parts(g.mesh, label, zeros(g), {{kZ, kZ}});
+  ASSERT_EQ(parts.size(), 3u);
+  expect_valid_parts(g, parts);
+  ASSERT_EQ(parts[0].direction_index, 1);
+  EXPECT_EQ(parts[1].mesh.vertices.size(), 8u);
+  EXPECT_EQ(parts[2].mesh.vertices.size(), 8u);
+  // The ring of six cubes, pinched apart at the centre, is bounded by a sphere.
+  EXPECT_EQ(count_vertices_at(parts[0].mesh, Vec3(1, 1, 1)), 2);
+  EXPECT_EQ(euler_characteristic(parts[0].mesh), 2);
+}
+
+TEST(ExtractParts, PartPinchedAlongAnEdgeBetweenConnectedEndsIsManifold) {
+  // A 2x2x3 block whose middle layer lost two diagonal cubes: the two remaining middle cubes
+  // share only the centre edge, and both its end vertices are single fans (the slabs join
+  // them). The part is a solid torus whose surface runs twice along that edge.
+  const Grid g = make_grid(2, 2, 3, 1.0);
+  const auto label = per_cell(g, [](const Cell& c) { return (c[2] == 1 && c[0] != c[1]) ? 1 : 0; });
+  const auto parts = extract_parts(g.mesh, label, zeros(g), {{kZ, kZ}});
+  ASSERT_EQ(parts.size(), 3u);  // the two removed cubes share an edge only
+  expect_valid_parts(g, parts);
+  const TriMesh& mesh = parts[0].mesh;
+  EXPECT_EQ(parts[0].direction_index, 0);
+  EXPECT_EQ(count_vertices_at(mesh, Vec3(1, 1, 1)), 1);
+  EXPECT_EQ(count_vertices_at(mesh, Vec3(1, 1, 2)), 1);
+  // One of the two face pairs along the edge gets its own midpoint.
+  EXPECT_EQ(count_vertices_at(mesh, Vec3(1, 1, 1.5)), 1);
+  EXPECT_EQ(mesh.vertices.size(), 37u);
+  EXPECT_EQ(euler_characteristic(mesh), 0);
+}
+
+TEST(ExtractParts, SameLabelApartGivesTwoParts) {
+  const Grid g = make_grid(3, 1, 1, 2.0);
+  const auto label = per_cell(g, [](const Cell& c) { return c[0] == 1 ? 1 : 0; });
+  const auto parts = extract_parts(g.mesh, label, zeros(g), {{kZ, -kZ}});
+  ASSERT_EQ(parts.size(), 3u);
+  expect_valid_parts(g, parts);
+  // Equal volumes: ordered by smallest tet, i.e. by cell x.
+  EXPECT_EQ(parts[0].tets.front(), 0);
+  EXPECT_EQ(parts[1].tets.front(), 6);
+  EXPECT_EQ(parts[2].tets.front(), 12);
+  EXPECT_EQ(parts[0].direction_index, 0);
+  EXPECT_EQ(parts[1].direction_index, 1);
+  EXPECT_EQ(parts[2].direction_index, 0);
+}
+
+TEST(ExtractParts, RegionSeparatesEqualLabels) {
+  const Grid g = make_grid(2, 1, 1, 2.0);
+  const auto region = per_cell(g, [](const Cell& c) { return c[0]; });
+  const auto parts = extract_parts(g.mesh, zeros(g), region, {{kZ}, {kY}});
+  ASSERT_EQ(parts.size(), 2u);
+  expect_valid_parts(g, parts);
+  EXPECT_EQ(parts[0].region, 0);
+  EXPECT_EQ(parts[0].direction, kZ);
+  EXPECT_EQ(parts[1].region, 1);
+  EXPECT_EQ(parts[1].direction, kY);
+  EXPECT_EQ(parts[1].direction_index, 0);
+}
+
+TEST(ExtractParts, MissingDirectionThrows) {
+  const Grid g = make_grid(1, 1, 1, 1.0);
+  EXPECT_THROW(extract_parts(g.mesh, zeros(g), zeros(g), {{}}), Error);
+}
+
+// Pseudo-random labels per tet: parts touch themselves and each other along edges and at
+// vertices everywhere.
+std::vector<std::int32_t> scrambled_labels(std::size_t n, int num_labels, std::uint32_t seed) {
+  std::vector<std::int32_t> label(n);
+  std::uint32_t s = seed;
+  for (auto& l : label) {
+    s = s * 1664525u + 1013904223u;
+    l = static_cast<std::int32_t>((s >> 16) % static_cast<std::uint32_t>(num_labels));
+  }
+  return label;
+}
+
+TEST(ExtractParts, ScrambledLabelsGiveClosedManifoldParts) {
+  const Grid g = make_grid(6, 6, 6, 3.0);
+  const auto label = scrambled_labels(g.mesh.tets.size(), 3, 7);
+  const auto parts = extract_parts(g.mesh, label, zeros(g), {{kZ, kX, -kY}});
+  EXPECT_GT(parts.size(), 10u);
+  expect_valid_parts(g, parts);
+  // Same result on one thread.
+  tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+  const auto again = extract_parts(g.mesh, label, zeros(g), {{kZ, kX, -kY}});
+  ASSERT_EQ(again.size(), parts.size());
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    EXPECT_EQ(again[p].tets, parts[p].tets);
+    EXPECT_EQ(again[p].mesh.triangles, parts[p].mesh.triangles);
+    EXPECT_EQ(again[p].mesh.vertices, parts[p].mesh.vertices);
+  }
+}
+
+// --- assembly ---
+
+// Parts of a grid labeled per cell, with one direction per label.
+std::vector<Part> grid_parts(const Grid& g, const std::function<int(const Cell&)>& label,
+                             const std::vector<Vec3>& directions) {
+  return extract_parts(g.mesh, per_cell(g, label), zeros(g), {directions});
+}
+
+// The part owning each cell of the grid.
+std::map<Cell, int> cell_owner(const Grid& g, const std::vector<Part>& parts) {
+  std::map<Cell, int> owner;
+  for (const Part& p : parts)
+    for (const std::int32_t t : p.tets) owner[g.cell_of_tet[t]] = p.id;
+  return owner;
+}
+
+// Exact blocking for axis directions on a per-cell labeling: B is blocked by A iff some cell of
+// A lies further along d_B in the same row of cells as a cell of B (gaps do not matter).
+std::vector<std::vector<std::int32_t>> blocks_by_cells(const Grid& g,
+                                                       const std::vector<Part>& parts) {
+  const auto owner = cell_owner(g, parts);
+  std::vector<std::set<std::int32_t>> blocks(parts.size());
+  for (const auto& [cell, b] : owner) {
+    const Vec3& d = parts[b].direction;
+    for (int axis = 0; axis < 3; ++axis) {
+      const int step = d[axis] > 0.5 ? 1 : (d[axis] < -0.5 ? -1 : 0);
+      if (step == 0) continue;
+      for (Cell c = cell; c[axis] >= 0 && c[axis] < g.n[axis]; c[axis] += step) {
+        const auto it = owner.find(c);  // cells outside the solid have no owner
+        if (it != owner.end() && it->second != b) blocks[b].insert(it->second);
+      }
+    }
+  }
+  std::vector<std::vector<std::int32_t>> out;
+  for (const auto& s : blocks) out.emplace_back(s.begin(), s.end());
+  return out;
+}
+
+// The same parts leaving the other way: their blocking along -d.
+std::vector<Part> flipped(std::vector<Part> parts) {
+  for (Part& p : parts) p.direction = -p.direction;
+  return parts;
+}
+
+// The plan agrees with the blocking both ways (forward along +d, backward along -d): disassembly
+// takes out the smallest-id part that no remaining part blocks along +d, else along -d; blocks
+// holds the list along the way each part leaves; order is the disassembly reversed, then the
+// parts left blocked by ascending id.
+void expect_plan_follows(const AssemblyPlan& plan,
+                         const std::vector<std::vector<std::int32_t>>& forward,
+                         const std::vector<std::vector<std::int32_t>>& backward) {
+  const std::size_t n = forward.size();
+  std::vector<bool> remaining(n, true), reversed(n, false);
+  auto free_of = [&](const std::vector<std::int32_t>& blockers) {
+    return std::none_of(blockers.begin(), blockers.end(),
+                        [&](std::int32_t q) { return remaining[q]; });
+  };
+  std::vector<std::int32_t> removed;
+  for (std::size_t p = 0; p < n;) {
+    if (remaining[p] && (free_of(forward[p]) || free_of(backward[p]))) {
+      reversed[p] = !free_of(forward[p]);
+      remaining[p] = false;
+      removed.push_back(static_cast<std::int32_t>(p));
+      p = 0;
+    } else {
+      ++p;
+    }
+  }
+  std::vector<std::int32_t> order(removed.rbegin(), removed.rend());
+  for (std::size_t p = 0; p < n; ++p)
+    if (remaining[p]) order.push_back(static_cast<std::int32_t>(p));
+  std::vector<std::vector<std::int32_t>> blocks;
+  for (std::size_t p = 0; p < n; ++p) blocks.push_back(reversed[p] ? backward[p] : forward[p]);
+  EXPECT_EQ(plan.found, removed.size() == n);
+  EXPECT_EQ(plan.reversed, reversed);
+  EXPECT_EQ(plan.blocks, blocks);
+  EXPECT_EQ(plan.order, order);
+}
+
+// No part collides with the parts placed before it.
+void expect_collision_free(const AssemblyPlan& plan, std::size_t num_parts) {
+  std::vector<std::int32_t> sorted = plan.order;
+  std::sort(sorted.begin(), sorted.end());
+  std::vector<std::int32_t> all(num_parts);
+  std::iota(all.begin(), all.end(), 0);
+  EXPECT_EQ(sorted, all);
+  std::set<std::int32_t> placed;
+  for (const std::int32_t p : plan.order) {
+    for (const std::int32_t q : plan.blocks[p]) EXPECT_FALSE(placed.count(q)) << p << " hits " << q;
+    placed.insert(p);
+  }
+}
+
+using Blocks = std::vector<std::vector<std::int32_t>>;
+using Flags = std::vector<bool>;
+
+constexpr double kTolerance_mm = 0.01;
+
+TEST(PlanAssembly, BlockedBottomOfAStackLeavesDownwards) {
+  // Both leave up: the top is in the bottom's way, so the bottom (part 0, smallest id) leaves
+  // down instead, before the top; assembly is the reverse.
+  const Grid g = make_grid(2, 2, 2, 10.0);
+  const auto parts = grid_parts(g, [](const Cell& c) { return c[2]; }, {kZ, kZ});
+  ASSERT_EQ(parts.size(), 2u);
+  ASSERT_EQ(parts[0].direction_index, 0);  // the bottom holds tet 0
+  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  EXPECT_TRUE(plan.found);
+  EXPECT_EQ(plan.reversed, (Flags{true, false}));
+  EXPECT_EQ(plan.blocks, (Blocks{{}, {}}));
+  EXPECT_EQ(plan.order, (std::vector<std::int32_t>{1, 0}));
+  EXPECT_TRUE(plan.message.empty());
+}
+
+TEST(PlanAssembly, PartsLeavingAwayFromEachOtherAreFree) {
+  // Bottom leaves down, top leaves up: nothing blocks; disassembly takes part 0 first.
+  const Grid g = make_grid(2, 2, 2, 10.0);
+  const auto parts = grid_parts(g, [](const Cell& c) { return c[2]; }, {-kZ, kZ});
+  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  EXPECT_TRUE(plan.found);
+  EXPECT_EQ(plan.reversed, (Flags{false, false}));
+  EXPECT_EQ(plan.blocks, (Blocks{{}, {}}));
+  EXPECT_EQ(plan.order, (std::vector<std::int32_t>{1, 0}));
+}
+
+TEST(PlanAssembly, PartsLeavingTowardsEachOtherLeaveOneWayReversed) {
+  // Bottom up, top down: each blocks the other. Reversed, the bottom leaves down first; then the
+  // top is free to leave down through the room the bottom left.
+  const Grid g = make_grid(2, 2, 2, 10.0);
+  const auto parts = grid_parts(g, [](const Cell& c) { return c[2]; }, {kZ, -kZ});
+  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  EXPECT_TRUE(plan.found);
+  EXPECT_EQ(plan.reversed, (Flags{true, false}));
+  EXPECT_EQ(plan.blocks, (Blocks{{}, {0}}));
+  EXPECT_EQ(plan.order, (std::vector<std::int32_t>{1, 0}));
+  EXPECT_TRUE(plan.message.empty());
+}
+
+TEST(PlanAssembly, PartsSlidingAlongTheirInterfaceDoNotBlock) {
+  const Grid g = make_grid(2, 2, 2, 10.0);
+  const auto parts = grid_parts(g, [](const Cell& c) { return c[0]; }, {kZ, kZ});
+  const AssemblyPlan plan = plan_assembly(g.mesh, parts, 0.0);
+  EXPECT_TRUE(plan.found);
+  EXPECT_EQ(plan.reversed, (Flags{false, false}));
+  EXPECT_EQ(plan.blocks, (Blocks{{}, {}}));
+  EXPECT_EQ(plan.order, (std::vector<std::int32_t>{1, 0}));
+}
+
+TEST(PlanAssembly, LeavingObliquelyIntoANeighbourIsBlocked) {
+  // Side by side; the left column tilts towards the wider right part, which leaves straight up.
+  // The right part (0, the larger) leaves first, then the left one along +d: blocks[1] still
+  // names the part its way runs through.
+  const Grid g = make_grid(3, 2, 2, 10.0);
+  const auto parts =
+      grid_parts(g, [](const Cell& c) { return c[0] == 0 ? 0 : 1; }, {Vec3(0.3, 0, 1), kZ});
+  ASSERT_EQ(parts.size(), 2u);
+  ASSERT_EQ(parts[0].direction, kZ);
+  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  EXPECT_TRUE(plan.found);
+  EXPECT_EQ(plan.reversed, (Flags{false, false}));
+  EXPECT_EQ(plan.blocks, (Blocks{{}, {0}}));
+  EXPECT_EQ(plan.order, (std::vector<std::int32_t>{1, 0}));
+}
+
+TEST(PlanAssembly, InterlockingLsComeApartWhenOneLeavesBackwards) {
+  // In the x-z plane (z up):   B B A C
+  //                            B A A C
+  // A leaves along +z (B is above its left cell), B along +x (A is right of both its rows),
+  // C along +z, free. Parts: B (holds tet 0) = 0, A = 1, C = 2. Along -x nothing is left of B:
+  // B leaves that way first, then A and C are free.
+  const Grid g = make_grid(4, 1, 2, 10.0);
+  const auto parts = grid_parts(g,
+                                [](const Cell& c) {
+                                  if (c[0] == 3) return 2;
+                                  const bool a =
+                                      (c[2] == 0 && c[0] >= 1) || (c[2] == 1 && c[0] == 2);
+                                  return a ? 0 : 1;
+                                },
+                                {kZ, kX, kZ});
+  ASSERT_EQ(parts.size(), 3u);
+  ASSERT_EQ(parts[0].direction, kX);
+  ASSERT_EQ(parts[1].direction, kZ);
+  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  EXPECT_TRUE(plan.found);
+  EXPECT_EQ(plan.reversed, (Flags{true, false, false}));
+  EXPECT_EQ(plan.blocks, (Blocks{{}, {0}, {}}));
+  EXPECT_EQ(plan.order, (std::vector<std::int32_t>{2, 1, 0}));
+  EXPECT_TRUE(plan.message.empty());
+}
+
+TEST(PlanAssembly, EnclosedCubeReportsACycleAndTheRestIsOrdered) {
+  // In the x-z plane (z up):   B B B C
+  //                            B A B C
+  //                            B B B C
+  // A leaves along z: B is above and below it. B leaves along x: A is right of its left cell and
+  // left of its right cell. C, along z, is free. Parts: B = 0, C = 1, A = 2.
+  const Grid g = make_grid(4, 1, 3, 10.0);
+  const auto parts = grid_parts(g,
+                                [](const Cell& c) {
+                                  if (c[0] == 3) return 2;
+                                  return c[0] == 1 && c[2] == 1 ? 0 : 1;
+                                },
+                                {kZ, kX, kZ});
+  ASSERT_EQ(parts.size(), 3u);
+  ASSERT_EQ(parts[0].direction, kX);
+  ASSERT_EQ(parts[1].direction_index, 2);
+  ASSERT_EQ(parts[2].direction_index, 0);
+  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  EXPECT_FALSE(plan.found);
+  EXPECT_EQ(plan.reversed, (Flags{false, false, false}));
+  // B along +x runs into A and C.
+  EXPECT_EQ(plan.blocks, (Blocks{{1, 2}, {}, {0}}));
+  EXPECT_EQ(plan.order, (std::vector<std::int32_t>{1, 0, 2}));
+  EXPECT_EQ(plan.message, "no assembly order: part 0 blocks part 2, part 2 blocks part 0");
+}
+
+TEST(PlanAssembly, ThreePartCycleIsNamed) {
+  // In the x-z plane (z up):   U L K U
+  //                            U L L U
+  //                            U U U U
+  // A cup U holding an L and a cube K. U leaves along x (L and K are in its rows both ways), L
+  // along z (K above, U below), K along x (U on its right, L and U on its left). Parts: U = 0,
+  // L = 1, K = 2; along +d U is blocked by L first, L by K, K by U.
+  const Grid g = make_grid(4, 1, 3, 10.0);
+  const auto parts = grid_parts(g,
+                                [](const Cell& c) {
+                                  const int x = c[0], z = c[2];
+                                  if (x == 2 && z == 2) return 2;
+                                  return (z >= 1 && x >= 1 && x <= 2) ? 1 : 0;
+                                },
+                                {kX, kZ, kX});
+  ASSERT_EQ(parts.size(), 3u);
+  ASSERT_EQ(parts[0].direction_index, 0);
+  ASSERT_EQ(parts[1].direction_index, 1);
+  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  EXPECT_FALSE(plan.found);
+  EXPECT_EQ(plan.reversed, (Flags{false, false, false}));
+  EXPECT_EQ(plan.blocks, (Blocks{{1, 2}, {2}, {0}}));
+  EXPECT_EQ(plan.order, (std::vector<std::int32_t>{0, 1, 2}));
+  EXPECT_EQ(plan.message,
+            "no assembly order: part 0 blocks part 2, part 2 blocks part 1, part 1 blocks part 0");
+}
+
+TEST(PlanAssembly, ColumnWithOpposedDirectionsComesApartReversed) {
+  // A column of three cubes: the lower two leave up, the top one down through both. The bottom
+  // leaves down first, then the middle one down through the room it left (running into part 0's
+  // former place), then the top.
+  const Grid g = make_grid(1, 1, 3, 10.0);
+  const auto parts = grid_parts(g, [](const Cell& c) { return c[2]; }, {kZ, kZ, -kZ});
+  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  EXPECT_TRUE(plan.found);
+  EXPECT_EQ(plan.reversed, (Flags{true, true, false}));
+  EXPECT_EQ(plan.blocks, (Blocks{{}, {0}, {0, 1}}));
+  EXPECT_EQ(plan.order, (std::vector<std::int32_t>{2, 1, 0}));
+  expect_collision_free(plan, parts.size());
+}
+
+TEST(PlanAssembly, BlockingMatchesCellRowsOnScrambledParts) {
+  // Random per-cell labels with axis directions: the blocking relation is known exactly.
+  const Grid g = make_grid(6, 5, 4, 4.0);
+  const auto cell_label = scrambled_labels(6 * 5 * 4, 4, 11);
+  const auto parts =
+      grid_parts(g, [&](const Cell& c) { return cell_label[(c[2] * 5 + c[1]) * 6 + c[0]]; },
+                 {kZ, -kX, kY, -kZ});
+  ASSERT_GT(parts.size(), 5u);
+  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  expect_plan_follows(plan, blocks_by_cells(g, parts), blocks_by_cells(g, flipped(parts)));
+  EXPECT_GT(std::count(plan.reversed.begin(), plan.reversed.end(), true), 0);
+  if (plan.found) {
+    expect_collision_free(plan, parts.size());
+  } else {
+    EXPECT_NE(plan.message.find("no assembly order: part "), std::string::npos);
+  }
+  tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+  const AssemblyPlan again = plan_assembly(g.mesh, parts, kTolerance_mm);
+  EXPECT_EQ(again.blocks, plan.blocks);
+  EXPECT_EQ(again.reversed, plan.reversed);
+  EXPECT_EQ(again.order, plan.order);
+}
+
+TEST(PlanAssembly, AxisAlignedLayersHaveAnOrder) {
+  // Per-cell labels by z-layer and a direction per layer that points out of the stack for the
+  // outer layers: always solvable, and collision-free. Layer 1 (up, under layers 2 and 3) leaves
+  // down once layer 0 is out.
+  const Grid g = make_grid(3, 3, 4, 5.0);
+  const auto parts = grid_parts(g, [](const Cell& c) { return c[2]; }, {-kZ, kZ, kX, kZ});
+  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  EXPECT_TRUE(plan.found);
+  expect_plan_follows(plan, blocks_by_cells(g, parts), blocks_by_cells(g, flipped(parts)));
+  EXPECT_EQ(plan.reversed, (Flags{false, true, false, false}));
+  EXPECT_EQ(plan.order, (std::vector<std::int32_t>{3, 2, 1, 0}));
+  expect_collision_free(plan, parts.size());
+}
+
+TEST(PlanAssembly, NegativeToleranceThrows) {
+  const Grid g = make_grid(1, 1, 1, 1.0);
+  const auto parts = extract_parts(g.mesh, zeros(g), zeros(g), {{kZ}});
+  EXPECT_THROW(plan_assembly(g.mesh, parts, -1.0), Error);
+}
+
+// --- brute-force reference and real shapes ---
+
+// Blocking by brute force, in double precision: from the same sample points (tet barycentres,
+// points 10 % of the way from each boundary face's centre to its tet's barycentre), clip the
+// ray against every tet of every other part and merge the intervals per part.
+std::vector<std::vector<std::int32_t>> reference_blocks(const TetMesh& mesh,
+                                                        const std::vector<Part>& parts,
+                                                        double tolerance_mm) {
+  std::vector<std::int32_t> part_of(mesh.tets.size());
+  for (const Part& p : parts)
+    for (const std::int32_t t : p.tets) part_of[t] = p.id;
+  auto corner = [&](std::int32_t t, int k) -> const Vec3& {
+    return mesh.vertices[mesh.tets[t][k]];
+  };
+  auto centre = [&](std::int32_t t) -> Vec3 {
+    return 0.25 * (corner(t, 0) + corner(t, 1) + corner(t, 2) + corner(t, 3));
+  };
+  std::vector<std::set<std::int32_t>> blocks(parts.size());
+  for (const Part& b : parts) {
+    std::vector<Vec3> samples;
+    for (const std::int32_t t : b.tets) {
+      samples.push_back(centre(t));
+      for (int i = 0; i < 4; ++i) {
+        const std::int32_t u = mesh.neighbors[t][i];
+        if (u >= 0 && part_of[u] == b.id) continue;
+        const Vec3 f =
+            (corner(t, kTetFaces[i][0]) + corner(t, kTetFaces[i][1]) + corner(t, kTetFaces[i][2])) /
+            3.0;
+        samples.push_back(f + 0.1 * (centre(t) - f));
+      }
+    }
+    const Vec3& d = b.direction;
+    for (const Vec3& o : samples) {
+      std::vector<std::vector<std::pair<double, double>>> spans(parts.size());
+      for (std::int32_t u = 0; u < static_cast<std::int32_t>(mesh.tets.size()); ++u) {
+        if (part_of[u] == b.id) continue;
+        double lo = 0.0, hi = 1e300;
+        for (int i = 0; i < 4 && lo < hi; ++i) {
+          const Vec3 p = corner(u, kTetFaces[i][0]);
+          const Vec3 n = (corner(u, kTetFaces[i][1]) - p).cross(corner(u, kTetFaces[i][2]) - p);
+          const double start = n.dot(o - p), rate = n.dot(d);  // inside: start + t rate <= 0
+          if (rate > 0)
+            hi = std::min(hi, -start / rate);
+          else if (rate < 0)
+            lo = std::max(lo, -start / rate);
+          else if (start > 0)
+            hi = lo;
+        }
+        if (lo < hi) spans[part_of[u]].push_back({lo, hi});
+      }
+      for (std::size_t a = 0; a < parts.size(); ++a) {
+        auto& s = spans[a];
+        std::sort(s.begin(), s.end());
+        for (std::size_t k = 0; k < s.size();) {
+          double lo = s[k].first, hi = s[k].second;
+          for (++k; k < s.size() && s[k].first <= hi + 1e-9; ++k) hi = std::max(hi, s[k].second);
+          if (hi - lo > tolerance_mm) blocks[b.id].insert(static_cast<std::int32_t>(a));
+        }
+      }
+    }
+  }
+  std::vector<std::vector<std::int32_t>> out;
+  for (const auto& s : blocks) out.emplace_back(s.begin(), s.end());
+  return out;
+}
+
+TEST(PlanAssembly, MatchesBruteForceOnAJitteredGridWithObliqueDirections) {
+  const Grid g = make_grid(6, 5, 4, 4.0, 0.15);
+  const auto cell_label = scrambled_labels(6 * 5 * 4, 4, 5);
+  const auto parts = grid_parts(
+      g, [&](const Cell& c) { return cell_label[(c[2] * 5 + c[1]) * 6 + c[0]]; },
+      {Vec3(0.2, -0.3, 1.0), Vec3(-1.0, 0.5, 0.1), Vec3(0.1, 1.0, -0.4), Vec3(0.6, 0.6, -0.5)});
+  ASSERT_GT(parts.size(), 5u);
+  expect_valid_parts(g, parts);
+  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  expect_plan_follows(plan, reference_blocks(g.mesh, parts, kTolerance_mm),
+                      reference_blocks(g.mesh, flipped(parts), kTolerance_mm));
+  EXPECT_GT(std::count(plan.reversed.begin(), plan.reversed.end(), true), 0);
+  std::size_t pairs = 0;
+  for (const auto& b : plan.blocks) pairs += b.size();
+  EXPECT_GT(pairs, 0u);
+}
+
+// Cells of a grid (cell_mm) whose centre is inside a closed mesh, by ray parity along z.
+std::set<Cell> voxelize(const TriMesh& mesh, double cell_mm, std::array<int, 3>& n) {
+  const Box3 box = bounding_box(mesh.vertices);
+  for (int k = 0; k < 3; ++k)
+    n[k] = static_cast<int>(std::ceil((box.max[k] - box.min[k]) / cell_mm));
+  std::set<Cell> inside;
+  for (int x = 0; x < n[0]; ++x)
+    for (int y = 0; y < n[1]; ++y) {
+      // Off-centre by an irrational fraction, so the column misses every edge and vertex.
+      const double px = box.min.x() + (x + 0.5 + 1e-4 * std::sqrt(2.0)) * cell_mm;
+      const double py = box.min.y() + (y + 0.5 + 1e-4 * std::sqrt(3.0)) * cell_mm;
+      std::vector<double> zs;
+      for (const Tri& t : mesh.triangles) {
+        const Vec3 &a = mesh.vertices[t[0]], &b = mesh.vertices[t[1]], &c = mesh.vertices[t[2]];
+        const double w0 = (b.x() - px) * (c.y() - py) - (b.y() - py) * (c.x() - px);
+        const double w1 = (c.x() - px) * (a.y() - py) - (c.y() - py) * (a.x() - px);
+        const double w2 = (a.x() - px) * (b.y() - py) - (a.y() - py) * (b.x() - px);
+        if (!((w0 > 0 && w1 > 0 && w2 > 0) || (w0 < 0 && w1 < 0 && w2 < 0))) continue;
+        zs.push_back((w0 * a.z() + w1 * b.z() + w2 * c.z()) / (w0 + w1 + w2));
+      }
+      std::sort(zs.begin(), zs.end());
+      for (int z = 0; z < n[2]; ++z) {
+        const double pz = box.min.z() + (z + 0.5) * cell_mm;
+        const auto below = std::lower_bound(zs.begin(), zs.end(), pz) - zs.begin();
+        if (below % 2 == 1) inside.insert({x, y, z});
+      }
+    }
+  return inside;
+}
+
+TEST(PartsRealShape, VoxelizedElephantGivesManifoldPartsAndExactBlocking) {
+  const std::string path = test::cgal_mesh("elephant.off");
+  if (path.empty()) GTEST_SKIP() << "CGAL data set not installed";
+  std::array<int, 3> n;
+  const std::set<Cell> inside = voxelize(test::load_scaled(path, 100.0), 2.5, n);
+  // Keep the tets of the inside cells only: a real shape, with rows of cells broken by gaps.
+  const Grid full = make_grid(n[0], n[1], n[2], 2.5);
+  Grid g{n, {}, {}};
+  g.mesh.vertices = full.mesh.vertices;
+  for (std::size_t t = 0; t < full.mesh.tets.size(); ++t) {
+    if (!inside.count(full.cell_of_tet[t])) continue;
+    g.mesh.tets.push_back(full.mesh.tets[t]);
+    g.cell_of_tet.push_back(full.cell_of_tet[t]);
+  }
+  build_tet_adjacency(g.mesh);
+  ASSERT_GT(inside.size(), 1000u);
+  // Octants around the grid centre, every 8th cell scrambled; axis directions.
+  const auto noise = scrambled_labels(static_cast<std::size_t>(n[0]) * n[1] * n[2], 64, 9);
+  const auto label = per_cell(g, [&](const Cell& c) {
+    const int r = noise[(c[2] * n[1] + c[1]) * n[0] + c[0]];
+    if (r < 8) return r % 6;
+    return (2 * c[0] >= n[0]) + 2 * (2 * c[1] >= n[1]) + 2 * (2 * c[2] >= n[2]);
+  });
+  const std::vector<std::vector<Vec3>> directions = {{-kX, kX, -kY, kY, -kZ, kZ, kX, kZ}};
+  const auto parts = extract_parts(g.mesh, label, zeros(g), directions);
+  ASSERT_GT(parts.size(), 20u);
+  expect_valid_parts(g, parts);
+  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  expect_plan_follows(plan, blocks_by_cells(g, parts), blocks_by_cells(g, flipped(parts)));
+  if (plan.found) expect_collision_free(plan, parts.size());
+  // The same on one thread.
+  tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+  const auto again = extract_parts(g.mesh, label, zeros(g), directions);
+  ASSERT_EQ(again.size(), parts.size());
+  for (std::size_t p = 0; p < parts.size(); ++p)
+    EXPECT_EQ(again[p].mesh.triangles, parts[p].mesh.triangles);
+  const AssemblyPlan plan_one = plan_assembly(g.mesh, again, kTolerance_mm);
+  EXPECT_EQ(plan_one.blocks, plan.blocks);
+  EXPECT_EQ(plan_one.reversed, plan.reversed);
+  EXPECT_EQ(plan_one.order, plan.order);
+}
+
+}  // namespace
+}  // namespace dhfcast

@@ -1,0 +1,148 @@
+// End-to-end properties of decompose() on real meshes.
+#include <gtest/gtest.h>
+#include <oneapi/tbb/global_control.h>
+
+#include <set>
+
+#include "dhfcast/mesh.h"
+#include "dhfcast/pipeline.h"
+#include "dhfcast/report.h"
+#include "support/test_support.h"
+
+using namespace dhfcast;
+
+namespace {
+
+// Small enough for the default suite, large enough to be a real decomposition.
+DecomposeOptions fast_options(std::int32_t tets = 8000) {
+  DecomposeOptions o;
+  o.tets.target_tets = tets;
+  o.directions = 128;
+  o.segment.restarts = 4;
+  return o;
+}
+
+struct Model {
+  std::string name;
+  std::string path;
+  double diag_mm;  // scale to this bounding-box diagonal (0: keep)
+};
+
+void expect_valid_decomposition(const TriMesh& input, const Decomposition& d,
+                                const DecomposeOptions& opts) {
+  ASSERT_FALSE(d.parts.empty());
+  // Every tet of the main region carries a direction it is accessible for.
+  std::vector<std::int32_t> tet_part(d.tets.tets.size(), -1);
+  for (const Part& p : d.parts)
+    for (std::int32_t t : p.tets) {
+      EXPECT_EQ(tet_part[t], -1) << "tet " << t << " is in two parts";
+      tet_part[t] = p.id;
+      if (p.region == 0) {
+        ASSERT_TRUE(d.access.feasible.get(t, p.direction_index))
+            << "tet " << t << " of part " << p.id << " is not accessible along its direction";
+      }
+    }
+  for (std::size_t t = 0; t < tet_part.size(); ++t) ASSERT_GE(tet_part[t], 0) << "tet " << t;
+
+  // Parts are closed, manifold, outward; their volumes add up.
+  double parts_volume = 0.0;
+  for (const Part& p : d.parts) {
+    EXPECT_EQ(test::solid_topology_problem(p.mesh), "") << "part " << p.id;
+    EXPECT_NEAR(signed_volume(p.mesh), p.volume_mm3, 1e-6 * p.volume_mm3);
+    EXPECT_NEAR(p.direction.norm(), 1.0, 1e-9);
+    parts_volume += signed_volume(p.mesh);
+  }
+  const double tet_volume = total_volume(d.tets);
+  const double input_volume = signed_volume(input);
+  EXPECT_NEAR(parts_volume, tet_volume, 1e-3 * tet_volume);
+  // The tet boundary is within boundary_tolerance_mm of the surface, so the volumes differ by
+  // at most the surface area times that distance.
+  double input_area = 0.0;
+  for (const Tri& t : input.triangles)
+    input_area += 0.5 * (input.vertices[t[1]] - input.vertices[t[0]])
+                            .cross(input.vertices[t[2]] - input.vertices[t[0]])
+                            .norm();
+  EXPECT_NEAR(parts_volume, input_volume, input_area * d.tets.boundary_tolerance_mm + 1e-9 * input_volume);
+
+  // The parts' outer surface lies within the reported tolerance of the input surface.
+  std::set<std::int32_t> outer_ids;
+  for (std::size_t t = 0; t < d.tets.tets.size(); ++t)
+    for (int i = 0; i < 4; ++i)
+      if (d.tets.neighbors[t][i] < 0)
+        for (int k : kTetFaces[i]) outer_ids.insert(d.tets.tets[t][k]);
+  std::vector<Vec3> outer;
+  for (std::int32_t v : outer_ids) outer.push_back(d.tets.vertices[v]);
+  EXPECT_LE(test::max_distance_to_surface(outer, input),
+            d.tets.boundary_tolerance_mm + 1e-9);
+  EXPECT_LE(d.tets.boundary_tolerance_mm, 4 * opts.tets.facet_distance_mm);
+
+  // The assembly order is a permutation of the part ids. When the planner says it is
+  // collision-free, every part's blockers come after it; otherwise it names the blocking cycle.
+  std::set<std::int32_t> ids(d.assembly.order.begin(), d.assembly.order.end());
+  EXPECT_EQ(ids.size(), d.parts.size());
+  EXPECT_EQ(d.assembly.order.size(), d.parts.size());
+  if (!d.assembly.found) {
+    EXPECT_NE(d.assembly.message.find("blocks part"), std::string::npos) << d.assembly.message;
+    return;
+  }
+  std::set<std::int32_t> placed;
+  for (std::int32_t id : d.assembly.order) {
+    for (std::int32_t blocker : d.assembly.blocks[id])
+      EXPECT_FALSE(placed.count(blocker)) << "part " << id << " runs into part " << blocker;
+    placed.insert(id);
+  }
+}
+
+TEST(Pipeline, ElephantAtPaperSize) {
+  const std::string path = test::cgal_mesh("elephant.off");
+  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
+  const TriMesh input = test::load_scaled(path, 275.0);
+  const DecomposeOptions opts = fast_options();
+  const Decomposition d = decompose(input, opts);
+  expect_valid_decomposition(input, d, opts);
+  EXPECT_GE(d.parts.size(), 2u);  // an elephant is not a double height field
+  // A decomposition, not a fragmentation: few parts, and the largest holds much of the volume.
+  EXPECT_LE(d.parts.size(), 25u);
+  EXPECT_GE(d.parts[0].volume_mm3, 0.25 * total_volume(d.tets));
+}
+
+TEST(Pipeline, ConvexSolidIsOnePart) {
+  const TriMesh box = test::make_box(Vec3(0, 0, 0), Vec3(40, 30, 20));
+  const DecomposeOptions opts = fast_options(3000);
+  const Decomposition d = decompose(box, opts);
+  expect_valid_decomposition(box, d, opts);
+  EXPECT_EQ(d.parts.size(), 1u);
+  EXPECT_TRUE(d.assembly.found);
+}
+
+TEST(Pipeline, SameSeedSameOutputOnAnyThreadCount) {
+  const std::string path = test::cgal_mesh("fandisk.off");
+  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
+  const TriMesh input = test::load_scaled(path, 100.0);
+  const DecomposeOptions opts = fast_options(4000);
+  const InputInfo info{"fandisk.off", 0, 0.0, {}, false};
+  const std::string many = decomposition_json(info, opts, decompose(input, opts), 0, 0, false);
+  tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+  const std::string single = decomposition_json(info, opts, decompose(input, opts), 0, 0, false);
+  EXPECT_EQ(many, single);
+}
+
+// The extended suite: the paper's models and CAD-like parts, when their folder is present.
+class ExtendedModels : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(ExtendedModels, ValidDecomposition) {
+  const std::string path = test::extra_model(GetParam() + ".stl");
+  if (path.empty()) GTEST_SKIP() << "extended models absent (set DHFCAST_MODELS_DIR)";
+  const TriMesh input = test::load_scaled(path, 0.0);
+  const DecomposeOptions opts = fast_options(12000);
+  const Decomposition d = decompose(input, opts);
+  expect_valid_decomposition(input, d, opts);
+}
+
+INSTANTIATE_TEST_SUITE_P(Models, ExtendedModels,
+                         ::testing::Values("bunny", "armadillo", "elephant", "fertility", "duck",
+                                           "bimba", "doubletorus", "dragonstand", "fandisk",
+                                           "rockerarm", "pinion", "mastercylinder", "joint",
+                                           "wrench", "teacup", "vase"));
+
+}  // namespace
