@@ -32,8 +32,8 @@ declare -A paper=(
 
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
-printf '%-15s %7s %7s %6s %6s %6s %6s %6s %6s %5s | %7s %5s %5s %5s %5s\n' \
-  model tris tets load tets_s access segm parts total parts p.tets p.DHF p.sol p.prt p.#
+printf '%-15s %7s %7s %6s %6s %6s %6s %6s %6s %5s %6s %-24s | %7s %5s %5s %5s %5s\n' \
+  model tris tets load tets_s access segm parts total parts chk_s check p.tets p.DHF p.sol p.prt p.#
 for m in $models; do
   f="$models_dir/$m.stl"
   [ -f "$f" ] || { echo "bench: skip $m (no $f)" >&2; continue; }
@@ -42,15 +42,23 @@ for m in $models; do
   for r in $(seq "$runs"); do
     "$build/dhfcast" decompose "$f" -o "$tmp/$m-$r" --tets "$target" --quiet --force
   done
-  /usr/bin/python3 - "$m" "$tmp" "$runs" "${paper[$m]:-- - - - -}" <<'PY'
+  # The independent verifier's verdict on the first run's output.
+  check_start=$(date +%s.%N)
+  "$build/dhfcast" check "$tmp/$m-1" --input "$f" --json > "$tmp/$m-check.json" || true
+  check_end=$(date +%s.%N)
+  /usr/bin/python3 - "$m" "$tmp" "$runs" "${paper[$m]:-- - - - -}" "$check_start" "$check_end" <<'PY'
 import json, statistics, sys
 m, tmp, runs, paper = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4].split()
+check_s = float(sys.argv[6]) - float(sys.argv[5])
+checks = json.load(open(f"{tmp}/{m}-check.json"))["checks"]
+failed = [c["name"] for c in checks if c["status"] == "fail"]
+verdict = "PASS" if not failed else "FAIL:" + ",".join(failed)
 docs = [json.load(open(f"{tmp}/{m}-{r}/decomposition.json")) for r in range(1, runs + 1)]
 med = lambda k: statistics.median(d["timings_s"][k] for d in docs)
 d = docs[0]
 print(f"{m:<15} {d['input']['triangles']:7d} {d['tetrahedra']:7d} {med('load'):6.1f} "
       f"{med('tetrahedralize'):6.1f} {med('accessibility'):6.1f} {med('segmentation'):6.1f} "
-      f"{med('parts'):6.1f} {med('total'):6.1f} {len(d['parts']):5d} | "
+      f"{med('parts'):6.1f} {med('total'):6.1f} {len(d['parts']):5d} {check_s:6.1f} {verdict:<24} | "
       + " ".join(f"{x:>5}" for x in paper))
 PY
 done

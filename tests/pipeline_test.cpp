@@ -4,6 +4,7 @@
 
 #include <set>
 
+#include "dhfcast/check.h"
 #include "dhfcast/mesh.h"
 #include "dhfcast/pipeline.h"
 #include "dhfcast/report.h"
@@ -104,6 +105,30 @@ TEST(Pipeline, ElephantAtPaperSize) {
   // A decomposition, not a fragmentation: few parts, and the largest holds much of the volume.
   EXPECT_LE(d.parts.size(), 25u);
   EXPECT_GE(d.parts[0].volume_mm3, 0.25 * total_volume(d.tets));
+
+  // The independent verifier, on the written folder. The parts are still unions of tets, so
+  // their interfaces are staircases: the dhf and assembly checks run and report, but only the
+  // checks the raw parts must already pass are required here.
+  const std::string dir = test::temp_dir("elephant");
+  write_stl(dir + "/input.stl", input);
+  const InputInfo info{dir + "/input.stl", static_cast<std::int64_t>(input.triangles.size()),
+                       signed_volume(input), bounding_box(input.vertices), false};
+  write_output(dir + "/out", decomposition_json(info, opts, d, 0, 0), d, false);
+  CheckOptions check;
+  check.outdir = dir + "/out";
+  check.input_mesh = dir + "/input.stl";
+  const CheckReport report = check_output(check);
+  for (const CheckItem& item : report.items) {
+    SCOPED_TRACE(item.name + ": " + item.summary);
+    if (item.name == "molds") {
+      EXPECT_TRUE(item.skipped);
+    } else {
+      EXPECT_FALSE(item.skipped);
+    }
+    if (item.name == "contract" || item.name == "solids" || item.name == "coverage" ||
+        item.name == "fidelity")
+      EXPECT_TRUE(item.passed);
+  }
 }
 
 TEST(Pipeline, ConvexSolidIsOnePart) {
