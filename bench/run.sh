@@ -37,7 +37,8 @@ printf '%-15s %7s %7s %6s %6s %6s %6s %6s %6s %5s %6s %-24s | %7s %5s %5s %5s %5
 for m in $models; do
   f="$models_dir/$m.stl"
   [ -f "$f" ] || { echo "bench: skip $m (no $f)" >&2; continue; }
-  target="${tets:-${paper[$m]%% *}}"
+  paper_row="${paper[$m]:-}"
+  target="${tets:-${paper_row%% *}}"
   case "$target" in ''|*[!0-9]*) target=50000 ;; esac
   for r in $(seq "$runs"); do
     "$build/dhfcast" decompose "$f" -o "$tmp/$m-$r" --tets "$target" --quiet --force

@@ -348,6 +348,39 @@ TEST(SegmentRealMesh, ElephantGivesFewFeasiblePartsWhateverTheThreadCount) {
   EXPECT_EQ(seen.back(), 1.0);
   EXPECT_TRUE(std::is_sorted(seen.begin(), seen.end()));
 
+  // No part could take a face neighbour's direction: every such merge was made.
+  std::vector<std::int32_t> part(tets.tets.size(), -1);
+  std::int32_t num_parts = 0;
+  for (std::size_t s = 0; s < tets.tets.size(); ++s) {
+    if (part[s] >= 0 || l.label[s] < 0) continue;
+    std::vector<std::int32_t> stack{static_cast<std::int32_t>(s)};
+    part[s] = num_parts;
+    while (!stack.empty()) {
+      const std::int32_t t = stack.back();
+      stack.pop_back();
+      for (std::int32_t u : tets.neighbors[t])
+        if (u >= 0 && part[u] < 0 && l.label[u] == l.label[t]) {
+          part[u] = num_parts;
+          stack.push_back(u);
+        }
+    }
+    ++num_parts;
+  }
+  EXPECT_EQ(num_parts, l.num_components);
+  for (std::int32_t p = 0; p < num_parts; ++p) {
+    std::set<std::int32_t> neighbour_labels;
+    for (std::size_t t = 0; t < tets.tets.size(); ++t)
+      if (part[t] == p)
+        for (std::int32_t u : tets.neighbors[t])
+          if (u >= 0 && part[u] != p && l.label[u] >= 0) neighbour_labels.insert(l.label[u]);
+    for (std::int32_t d : neighbour_labels) {
+      bool all_feasible = true;
+      for (std::size_t t = 0; t < tets.tets.size() && all_feasible; ++t)
+        if (part[t] == p) all_feasible = f.feasible.get(static_cast<std::int32_t>(t), d);
+      EXPECT_FALSE(all_feasible) << "part " << p << " could merge into direction " << d;
+    }
+  }
+
   tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
   const Labeling single = segment(tets, f);
   EXPECT_EQ(single.label, l.label);
