@@ -6,9 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <functional>
 #include <limits>
-#include <map>
 #include <thread>
 
 #include "dhfcast/directions.h"
@@ -19,93 +17,8 @@ namespace dhfcast {
 namespace {
 
 using Coords = std::vector<double>;
-using Filled = std::function<bool(int, int, int)>;
-
-// Tets of a union of grid cells (cell (i, j, k) spans [xs[i], xs[i+1]] x ...), six per cell
-// along the main diagonal so that neighbouring cells share their faces.
-TetMesh grid_tets(const Coords& xs, const Coords& ys, const Coords& zs, const Filled& filled) {
-  TetMesh mesh;
-  std::map<std::array<int, 3>, std::int32_t> index;
-  auto vertex = [&](int i, int j, int k) {
-    auto [it, added] = index.emplace(std::array<int, 3>{i, j, k}, 0);
-    if (added) {
-      it->second = static_cast<std::int32_t>(mesh.vertices.size());
-      mesh.vertices.emplace_back(xs[i], ys[j], zs[k]);
-    }
-    return it->second;
-  };
-  const std::array<std::array<int, 3>, 6> perms = {
-      {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}}};
-  for (int i = 0; i + 1 < static_cast<int>(xs.size()); ++i)
-    for (int j = 0; j + 1 < static_cast<int>(ys.size()); ++j)
-      for (int k = 0; k + 1 < static_cast<int>(zs.size()); ++k) {
-        if (!filled(i, j, k)) continue;
-        for (const auto& p : perms) {
-          std::array<int, 3> c{i, j, k};
-          Tet t;
-          t[0] = vertex(c[0], c[1], c[2]);
-          for (int s = 0; s < 3; ++s) {
-            ++c[p[s]];
-            t[s + 1] = vertex(c[0], c[1], c[2]);
-          }
-          mesh.tets.push_back(t);
-          if (tet_volume(mesh, static_cast<std::int32_t>(mesh.tets.size()) - 1) < 0)
-            std::swap(mesh.tets.back()[2], mesh.tets.back()[3]);
-        }
-      }
-  build_tet_adjacency(mesh);
-  return mesh;
-}
-
-// Boundary of the same union of cells, outward, welded.
-TriMesh grid_surface(const Coords& xs, const Coords& ys, const Coords& zs, const Filled& filled) {
-  const std::array<int, 3> n{static_cast<int>(xs.size()) - 1, static_cast<int>(ys.size()) - 1,
-                             static_cast<int>(zs.size()) - 1};
-  auto in = [&](const std::array<int, 3>& c) {
-    for (int a = 0; a < 3; ++a)
-      if (c[a] < 0 || c[a] >= n[a]) return false;
-    return filled(c[0], c[1], c[2]);
-  };
-  TriMesh mesh;
-  std::map<std::array<int, 3>, std::int32_t> index;
-  auto vertex = [&](const std::array<int, 3>& g) {
-    auto [it, added] = index.emplace(g, 0);
-    if (added) {
-      it->second = static_cast<std::int32_t>(mesh.vertices.size());
-      mesh.vertices.emplace_back(xs[g[0]], ys[g[1]], zs[g[2]]);
-    }
-    return it->second;
-  };
-  for (int i = 0; i < n[0]; ++i)
-    for (int j = 0; j < n[1]; ++j)
-      for (int k = 0; k < n[2]; ++k) {
-        const std::array<int, 3> c{i, j, k};
-        if (!in(c)) continue;
-        for (int axis = 0; axis < 3; ++axis)
-          for (int side = 0; side < 2; ++side) {
-            std::array<int, 3> nb = c;
-            nb[axis] += side ? 1 : -1;
-            if (in(nb)) continue;
-            const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-            std::array<std::int32_t, 4> q;
-            for (int corner = 0; corner < 4; ++corner) {
-              std::array<int, 3> g = c;
-              g[axis] += side;
-              g[u] += (corner == 1 || corner == 2);
-              g[v] += (corner >= 2);
-              q[corner] = vertex(g);
-            }
-            if (side) {
-              mesh.triangles.push_back({q[0], q[1], q[2]});
-              mesh.triangles.push_back({q[0], q[2], q[3]});
-            } else {
-              mesh.triangles.push_back({q[0], q[2], q[1]});
-              mesh.triangles.push_back({q[0], q[3], q[2]});
-            }
-          }
-      }
-  return mesh;
-}
+using test::grid_surface;
+using test::grid_tets;
 
 Coords uniform(double lo, double hi, int cells) {
   Coords c;

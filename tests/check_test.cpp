@@ -12,7 +12,6 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
-#include <map>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <string>
@@ -29,62 +28,10 @@ namespace fs = std::filesystem;
 
 // --- solids made of the cells of a rectilinear grid ---
 
-using Cells = std::function<bool(int i, int j, int k)>;
-
-// Boundary of the union of the filled cells [xs[i], xs[i+1]] x [ys[j], ys[j+1]] x [zs[k], zs[k+1]]:
-// outward, welded. Filled cells must not meet only along an edge or at a vertex.
-TriMesh grid_solid(const std::vector<double>& xs, const std::vector<double>& ys,
-                   const std::vector<double>& zs, const Cells& filled) {
-  const std::array<int, 3> n = {int(xs.size()) - 1, int(ys.size()) - 1, int(zs.size()) - 1};
-  auto in = [&](std::array<int, 3> c) {
-    for (int a = 0; a < 3; ++a)
-      if (c[a] < 0 || c[a] >= n[a]) return false;
-    return filled(c[0], c[1], c[2]);
-  };
-  TriMesh mesh;
-  std::map<std::array<int, 3>, std::int32_t> index;
-  auto vertex = [&](const std::array<int, 3>& g) {
-    auto [it, added] = index.emplace(g, 0);
-    if (added) {
-      it->second = static_cast<std::int32_t>(mesh.vertices.size());
-      mesh.vertices.emplace_back(xs[g[0]], ys[g[1]], zs[g[2]]);
-    }
-    return it->second;
-  };
-  for (int i = 0; i < n[0]; ++i)
-    for (int j = 0; j < n[1]; ++j)
-      for (int k = 0; k < n[2]; ++k) {
-        const std::array<int, 3> c = {i, j, k};
-        if (!in(c)) continue;
-        for (int axis = 0; axis < 3; ++axis)
-          for (int side = 0; side < 2; ++side) {
-            std::array<int, 3> nb = c;
-            nb[axis] += side ? 1 : -1;
-            if (in(nb)) continue;
-            const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-            std::array<std::int32_t, 4> q;
-            for (int corner = 0; corner < 4; ++corner) {
-              std::array<int, 3> g = c;
-              g[axis] += side;
-              g[u] += corner == 1 || corner == 2;
-              g[v] += corner >= 2;
-              q[corner] = vertex(g);
-            }
-            // (u, v) order gives the normal +axis; the low side is flipped.
-            if (side) {
-              mesh.triangles.push_back({q[0], q[1], q[2]});
-              mesh.triangles.push_back({q[0], q[2], q[3]});
-            } else {
-              mesh.triangles.push_back({q[0], q[2], q[1]});
-              mesh.triangles.push_back({q[0], q[3], q[2]});
-            }
-          }
-      }
-  return mesh;
-}
+using test::grid_surface;
 
 TriMesh box(const Vec3& lo, const Vec3& hi) {
-  return grid_solid({lo.x(), hi.x()}, {lo.y(), hi.y()}, {lo.z(), hi.z()},
+  return grid_surface({lo.x(), hi.x()}, {lo.y(), hi.y()}, {lo.z(), hi.z()},
                     [](int, int, int) { return true; });
 }
 
@@ -96,8 +43,8 @@ std::array<TriMesh, 2> box_molds(const Vec3& lo, const Vec3& hi) {
   auto not_part = [](int k_part) {
     return [k_part](int i, int j, int k) { return !(i == 1 && j == 1 && k == k_part); };
   };
-  return {grid_solid(xs, ys, {mid, hi.z(), hi.z() + 10}, not_part(0)),
-          grid_solid(xs, ys, {lo.z() - 10, lo.z(), mid}, not_part(1))};
+  return {grid_surface(xs, ys, {mid, hi.z(), hi.z() + 10}, not_part(0)),
+          grid_surface(xs, ys, {lo.z() - 10, lo.z(), mid}, not_part(1))};
 }
 
 // --- output folders ---
@@ -266,7 +213,7 @@ TEST(Check, WithoutInputFidelityIsSkippedAndTheRestStillRuns) {
 
 // A U: base [0, 30] x [0, 10] x [0, 10] with prongs x in [0, 10] and [20, 30] up to z = 30.
 TriMesh u_shape() {
-  return grid_solid({0, 10, 20, 30}, {0, 10}, {0, 10, 30},
+  return grid_surface({0, 10, 20, 30}, {0, 10}, {0, 10, 30},
                     [](int i, int, int k) { return k == 0 || i != 1; });
 }
 
@@ -288,7 +235,7 @@ TEST(Check, PartThatIsNotADoubleHeightFieldFailsOnlyDhf) {
 
 TEST(Check, GapWithinEpsilonIsTolerated) {
   // A U whose opening is 0.5 mm wide: the gap is at most 0.25 mm from the surface.
-  const TriMesh narrow = grid_solid({0, 10, 10.5, 20.5}, {0, 10}, {0, 10, 30},
+  const TriMesh narrow = grid_surface({0, 10, 10.5, 20.5}, {0, 10}, {0, 10, 30},
                                     [](int i, int, int k) { return k == 0 || i != 1; });
   const CheckReport r = run(write_folder("narrow", narrow, {{narrow, Vec3::UnitX()}}, {0}));
   SCOPED_TRACE(format_text(r));
@@ -350,7 +297,7 @@ TEST(Check, OpenPartMeshFailsSolids) {
   // Drop one triangle of the bottom part's top face, an interface meshed finely enough that
   // the hole does not move the fidelity's 99th percentile.
   parts[0].mesh =
-      grid_solid({0, 10, 20, 30, 40, 50, 60, 70, 80, 90, 100}, {0, 10, 20, 30, 40, 50, 60}, {0, 20},
+      grid_surface({0, 10, 20, 30, 40, 50, 60, 70, 80, 90, 100}, {0, 10, 20, 30, 40, 50, 60}, {0, 20},
                  [](int, int, int) { return true; });
   TriMesh& m = parts[0].mesh;
   const auto top = std::ranges::find_if(m.triangles, [&](const Tri& t) {
@@ -376,7 +323,7 @@ TEST(Check, WrongVolumeInJsonFailsSolids) {
 TEST(Check, PartTouchingItselfAlongAnEdgeIsASolid) {
   // Two cubes sharing only the edge x = 10, z = 10: welded, that edge has four triangles.
   const TriMesh touching =
-      grid_solid({0, 10, 20}, {0, 10}, {0, 10, 20}, [](int i, int, int k) { return i == k; });
+      grid_surface({0, 10, 20}, {0, 10}, {0, 10, 20}, [](int i, int, int k) { return i == k; });
   ASSERT_FALSE(validate_mesh(touching).ok());
   const CheckReport r = run(write_folder("touch", touching, {{touching}}, {0}), false);
   SCOPED_TRACE(format_text(r));
@@ -392,11 +339,11 @@ bool l_part(int i, int j, int k) {
 }
 
 TEST(Check, MoldHalfWithAnUndercutFailsMolds) {
-  const TriMesh part = grid_solid(kLxs, kLys, kLzs, l_part);
+  const TriMesh part = grid_surface(kLxs, kLys, kLzs, l_part);
   const TriMesh up =
-      grid_solid(kLxs, kLys, kLzs, [](int i, int j, int k) { return k >= 2 && !l_part(i, j, k); });
+      grid_surface(kLxs, kLys, kLzs, [](int i, int j, int k) { return k >= 2 && !l_part(i, j, k); });
   const TriMesh down =
-      grid_solid(kLxs, kLys, kLzs, [](int i, int j, int k) { return k <= 1 && !l_part(i, j, k); });
+      grid_surface(kLxs, kLys, kLzs, [](int i, int j, int k) { return k <= 1 && !l_part(i, j, k); });
   const CheckReport good =
       run(write_folder("molds", part, {{part, Vec3::UnitZ(), {up, down}}}, {0}));
   SCOPED_TRACE(format_text(good));
@@ -406,10 +353,10 @@ TEST(Check, MoldHalfWithAnUndercutFailsMolds) {
   // The up half also takes the layer z in [0, 10] on the overhang's side (y < 20): pulled up, it
   // runs into the overhang.
   auto undercut = [](int i, int j, int k) { return k == 1 && j <= 1 && !l_part(i, j, k); };
-  const TriMesh bad_up = grid_solid(kLxs, kLys, kLzs, [&](int i, int j, int k) {
+  const TriMesh bad_up = grid_surface(kLxs, kLys, kLzs, [&](int i, int j, int k) {
     return (k >= 2 && !l_part(i, j, k)) || undercut(i, j, k);
   });
-  const TriMesh bad_down = grid_solid(kLxs, kLys, kLzs, [&](int i, int j, int k) {
+  const TriMesh bad_down = grid_surface(kLxs, kLys, kLzs, [&](int i, int j, int k) {
     return k <= 1 && !l_part(i, j, k) && !undercut(i, j, k);
   });
   const CheckReport bad =

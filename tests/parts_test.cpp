@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -33,10 +34,18 @@ struct Grid {
 };
 
 // jitter_rel > 0 moves every vertex by up to jitter_rel * cell_mm along each axis
-// (pseudo-randomly), so no ray or face is axis-aligned any more.
+// (pseudo-randomly), so no ray or face is axis-aligned any more. Vertices are numbered x fastest,
+// z slowest, like the cells.
 Grid make_grid(int nx, int ny, int nz, double cell_mm, double jitter_rel = 0.0) {
+  auto coords = [cell_mm](int cells) {
+    std::vector<double> c;
+    for (int i = 0; i <= cells; ++i) c.push_back(i * cell_mm);
+    return c;
+  };
+  // Oriented on the undisturbed cubes, so jitter can only show up as a failed check.
+  const TetMesh cubes =
+      test::grid_tets(coords(nx), coords(ny), coords(nz), [](int, int, int) { return true; });
   Grid g{{nx, ny, nz}, {}, {}};
-  auto vertex = [&](int x, int y, int z) { return (z * (ny + 1) + y) * (nx + 1) + x; };
   std::uint32_t seed = 12345;
   auto jitter = [&] {
     seed = seed * 1664525u + 1013904223u;
@@ -48,24 +57,17 @@ Grid make_grid(int nx, int ny, int nz, double cell_mm, double jitter_rel = 0.0) 
         const Vec3 offset(jitter(), jitter(), jitter());
         g.mesh.vertices.push_back(Vec3(x, y, z) * cell_mm + offset);
       }
-  std::array<int, 3> axes = {0, 1, 2};
-  std::vector<std::array<int, 3>> permutations;
-  do permutations.push_back(axes);
-  while (std::next_permutation(axes.begin(), axes.end()));
+  auto vertex = [&](const Vec3& p) {
+    auto at = [&](double c) { return static_cast<int>(std::lround(c / cell_mm)); };
+    return (at(p.z()) * (ny + 1) + at(p.y())) * (nx + 1) + at(p.x());
+  };
+  // test::grid_tets visits the cells z fastest; take them x fastest.
   for (int z = 0; z < nz; ++z)
     for (int y = 0; y < ny; ++y)
       for (int x = 0; x < nx; ++x)
-        for (const auto& perm : permutations) {
-          Cell c = {x, y, z};
-          Tet tet;
-          tet[0] = vertex(c[0], c[1], c[2]);
-          for (int k = 0; k < 3; ++k) {
-            ++c[perm[k]];
-            tet[k + 1] = vertex(c[0], c[1], c[2]);
-          }
-          // Orient by the undisturbed cube, so jitter can only show up as a failed check.
-          const Vec3 e1 = Vec3::Unit(perm[0]), e2 = e1 + Vec3::Unit(perm[1]);
-          if (e1.dot(e2.cross(Vec3::Ones())) < 0) std::swap(tet[1], tet[2]);
+        for (int s = 0; s < 6; ++s) {
+          Tet tet = cubes.tets[6 * ((x * ny + y) * nz + z) + s];
+          for (std::int32_t& v : tet) v = vertex(cubes.vertices[v]);
           g.mesh.tets.push_back(tet);
           EXPECT_GT(tet_volume(g.mesh, static_cast<std::int32_t>(g.mesh.tets.size()) - 1), 0.0);
           g.cell_of_tet.push_back({x, y, z});

@@ -126,8 +126,9 @@ TEST(Pipeline, ElephantAtPaperSize) {
       EXPECT_FALSE(item.skipped);
     }
     if (item.name == "contract" || item.name == "solids" || item.name == "coverage" ||
-        item.name == "fidelity")
+        item.name == "fidelity") {
       EXPECT_TRUE(item.passed);
+    }
   }
 }
 

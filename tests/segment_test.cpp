@@ -3,7 +3,6 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
-#include <array>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -190,35 +189,12 @@ TEST(MinimizeLabeling, RejectsMalformedProblems) {
 
 // Tets of an nx x ny x nz grid of cubes of side h_mm, six per cube along the main diagonal.
 TetMesh grid_tets(int nx, int ny, int nz, double h_mm) {
-  TetMesh mesh;
-  std::map<std::array<int, 3>, std::int32_t> index;
-  auto vertex = [&](const std::array<int, 3>& c) {
-    auto [it, added] = index.emplace(c, 0);
-    if (added) {
-      it->second = static_cast<std::int32_t>(mesh.vertices.size());
-      mesh.vertices.emplace_back(c[0] * h_mm, c[1] * h_mm, c[2] * h_mm);
-    }
-    return it->second;
+  auto coords = [h_mm](int cells) {
+    std::vector<double> c;
+    for (int i = 0; i <= cells; ++i) c.push_back(i * h_mm);
+    return c;
   };
-  const std::array<std::array<int, 3>, 6> perms = {
-      {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}}};
-  for (int i = 0; i < nx; ++i)
-    for (int j = 0; j < ny; ++j)
-      for (int k = 0; k < nz; ++k)
-        for (const auto& p : perms) {
-          std::array<int, 3> c{i, j, k};
-          Tet t;
-          t[0] = vertex(c);
-          for (int s = 0; s < 3; ++s) {
-            ++c[p[s]];
-            t[s + 1] = vertex(c);
-          }
-          mesh.tets.push_back(t);
-          if (tet_volume(mesh, static_cast<std::int32_t>(mesh.tets.size()) - 1) < 0)
-            std::swap(mesh.tets.back()[2], mesh.tets.back()[3]);
-        }
-  build_tet_adjacency(mesh);
-  return mesh;
+  return test::grid_tets(coords(nx), coords(ny), coords(nz), [](int, int, int) { return true; });
 }
 
 Vec3 barycentre(const TetMesh& m, std::int32_t t) {

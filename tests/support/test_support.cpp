@@ -62,76 +62,114 @@ TriMesh load_scaled(const std::string& path, double diag_mm) {
 }
 
 namespace {
-// Boundary of a union of unit voxels (scaled by `cell`), outward, welded. Voxels must not touch
-// only along an edge or at a vertex (that would be non-manifold).
-template <class Inside>
-TriMesh voxel_solid(const std::array<int, 3>& n, double cell, Inside inside) {
-  TriMesh mesh;
-  std::map<std::array<int, 3>, std::int32_t> index;
-  auto vertex = [&](int x, int y, int z) {
-    auto [it, added] = index.emplace(std::array<int, 3>{x, y, z}, 0);
+using GridPoint = std::array<int, 3>;
+
+// Welds grid points into mesh vertices, numbered in order of first use.
+template <class Mesh>
+auto grid_vertex(Mesh& mesh, const std::vector<double>& xs, const std::vector<double>& ys,
+                 const std::vector<double>& zs) {
+  return [&mesh, &xs, &ys, &zs, index = std::map<GridPoint, std::int32_t>()](
+             const GridPoint& g) mutable {
+    auto [it, added] = index.emplace(g, 0);
     if (added) {
       it->second = static_cast<std::int32_t>(mesh.vertices.size());
-      mesh.vertices.emplace_back(x * cell, y * cell, z * cell);
+      mesh.vertices.emplace_back(xs[g[0]], ys[g[1]], zs[g[2]]);
     }
     return it->second;
   };
-  auto filled = [&](int x, int y, int z) {
-    return x >= 0 && y >= 0 && z >= 0 && x < n[0] && y < n[1] && z < n[2] && inside(x, y, z);
+}
+}  // namespace
+
+TriMesh grid_surface(const std::vector<double>& xs, const std::vector<double>& ys,
+                     const std::vector<double>& zs, const GridFilled& filled) {
+  const GridPoint n{static_cast<int>(xs.size()) - 1, static_cast<int>(ys.size()) - 1,
+                    static_cast<int>(zs.size()) - 1};
+  auto in = [&](const GridPoint& c) {
+    for (int a = 0; a < 3; ++a)
+      if (c[a] < 0 || c[a] >= n[a]) return false;
+    return filled(c[0], c[1], c[2]);
   };
-  for (int x = 0; x < n[0]; ++x)
-    for (int y = 0; y < n[1]; ++y)
-      for (int z = 0; z < n[2]; ++z) {
-        if (!filled(x, y, z)) continue;
+  TriMesh mesh;
+  auto vertex = grid_vertex(mesh, xs, ys, zs);
+  for (int i = 0; i < n[0]; ++i)
+    for (int j = 0; j < n[1]; ++j)
+      for (int k = 0; k < n[2]; ++k) {
+        const GridPoint c{i, j, k};
+        if (!in(c)) continue;
         for (int axis = 0; axis < 3; ++axis)
           for (int side = 0; side < 2; ++side) {
-            std::array<int, 3> c{x, y, z};
-            std::array<int, 3> nb = c;
+            GridPoint nb = c;
             nb[axis] += side ? 1 : -1;
-            if (filled(nb[0], nb[1], nb[2])) continue;
-            // Quad on the face of voxel c at c[axis] + side, corners in the other two axes.
+            if (in(nb)) continue;
+            // Quad on the face of cell c at c[axis] + side, corners in the other two axes.
             const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-            std::array<std::array<int, 3>, 4> q;
-            for (int k = 0; k < 4; ++k) {
-              q[k] = c;
-              q[k][axis] += side;
-              q[k][u] += (k == 1 || k == 2);
-              q[k][v] += (k >= 2);
+            std::array<std::int32_t, 4> q;
+            for (int corner = 0; corner < 4; ++corner) {
+              GridPoint g = c;
+              g[axis] += side;
+              g[u] += (corner == 1 || corner == 2);
+              g[v] += (corner >= 2);
+              q[corner] = vertex(g);
             }
-            std::array<std::int32_t, 4> id;
-            for (int k = 0; k < 4; ++k) id[k] = vertex(q[k][0], q[k][1], q[k][2]);
-            // (u, v) order gives normal +axis; flip for the low side.
-            if (side)
-              mesh.triangles.push_back({id[0], id[1], id[2]}), mesh.triangles.push_back({id[0], id[2], id[3]});
-            else
-              mesh.triangles.push_back({id[0], id[2], id[1]}), mesh.triangles.push_back({id[0], id[3], id[2]});
+            // (u, v) order gives the normal +axis; the low side is flipped.
+            if (side) {
+              mesh.triangles.push_back({q[0], q[1], q[2]});
+              mesh.triangles.push_back({q[0], q[2], q[3]});
+            } else {
+              mesh.triangles.push_back({q[0], q[2], q[1]});
+              mesh.triangles.push_back({q[0], q[3], q[2]});
+            }
           }
       }
   return mesh;
 }
-}  // namespace
+
+TetMesh grid_tets(const std::vector<double>& xs, const std::vector<double>& ys,
+                  const std::vector<double>& zs, const GridFilled& filled) {
+  TetMesh mesh;
+  auto vertex = grid_vertex(mesh, xs, ys, zs);
+  const std::array<GridPoint, 6> perms = {
+      {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}}};
+  for (int i = 0; i + 1 < static_cast<int>(xs.size()); ++i)
+    for (int j = 0; j + 1 < static_cast<int>(ys.size()); ++j)
+      for (int k = 0; k + 1 < static_cast<int>(zs.size()); ++k) {
+        if (!filled(i, j, k)) continue;
+        // Walk from corner (i, j, k) to the opposite one, one axis at a time.
+        for (const auto& p : perms) {
+          GridPoint c{i, j, k};
+          Tet t;
+          t[0] = vertex(c);
+          for (int s = 0; s < 3; ++s) {
+            ++c[p[s]];
+            t[s + 1] = vertex(c);
+          }
+          mesh.tets.push_back(t);
+          if (tet_volume(mesh, static_cast<std::int32_t>(mesh.tets.size()) - 1) < 0)
+            std::swap(mesh.tets.back()[2], mesh.tets.back()[3]);
+        }
+      }
+  build_tet_adjacency(mesh);
+  return mesh;
+}
 
 TriMesh make_box(const Vec3& min, const Vec3& max) {
-  TriMesh m = voxel_solid({1, 1, 1}, 1.0, [](int, int, int) { return true; });
-  for (Vec3& p : m.vertices) p = min + p.cwiseProduct(max - min);
-  return m;
+  return grid_surface({min.x(), max.x()}, {min.y(), max.y()}, {min.z(), max.z()},
+                      [](int, int, int) { return true; });
 }
 
 TriMesh make_cup(double size_mm, double wall_mm) {
-  // 5x5x5 voxels: outer ring and floor filled, the 3x3 core above the floor empty.
+  // 5x5x5 cells: outer ring and floor filled, the 3x3 core above the floor empty; walls and floor
+  // wall_mm thick.
   const int n = 5;
-  TriMesh m = voxel_solid({n, n, n}, 1.0, [&](int x, int y, int z) {
-    const bool core = x > 0 && x < n - 1 && y > 0 && y < n - 1;
-    return !(core && z > 0);
+  std::vector<double> c;
+  for (int i = 0; i <= n; ++i)
+    c.push_back(i <= 1       ? i * wall_mm
+                : i >= n - 1 ? size_mm - (n - i) * wall_mm
+                             : wall_mm + (i - 1.0) / (n - 2) * (size_mm - 2 * wall_mm));
+  return grid_surface(c, c, c, [&](int i, int j, int k) {
+    const bool core = i > 0 && i < n - 1 && j > 0 && j < n - 1;
+    return !(core && k > 0);
   });
-  // Map voxel coordinates so that walls and floor have thickness wall_mm.
-  auto map = [&](double c) {
-    if (c <= 1) return c * wall_mm;
-    if (c >= n - 1) return size_mm - (n - c) * wall_mm;
-    return wall_mm + (c - 1) / (n - 2) * (size_mm - 2 * wall_mm);
-  };
-  for (Vec3& p : m.vertices) p = Vec3(map(p.x()), map(p.y()), map(p.z()));
-  return m;
 }
 
 }  // namespace dhfcast::test

@@ -1,6 +1,7 @@
 // Shared helpers for the tests: where real meshes are, and small analytic solids.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -20,6 +21,19 @@ std::string temp_dir(const std::string& tag);
 // Loads and validates a mesh, scaling it uniformly so its bounding-box diagonal is diag_mm
 // (<= 0: no scaling).
 TriMesh load_scaled(const std::string& path, double diag_mm);
+
+// Solids made of the cells of a rectilinear grid: cell (i, j, k) spans
+// [xs[i], xs[i+1]] x [ys[j], ys[j+1]] x [zs[k], zs[k+1]] and belongs to the solid when
+// filled(i, j, k). Vertices are numbered in order of first use, cells visited i, j, k (k fastest).
+using GridFilled = std::function<bool(int i, int j, int k)>;
+// Boundary of the union of the filled cells: outward, welded, two triangles per exposed cell
+// face. Filled cells must not meet only along an edge or at a vertex (non-manifold).
+TriMesh grid_surface(const std::vector<double>& xs, const std::vector<double>& ys,
+                     const std::vector<double>& zs, const GridFilled& filled);
+// Tets of the same union: six positively oriented tets per filled cell, along its main diagonal
+// (conforming across cells), consecutive per cell; adjacency built.
+TetMesh grid_tets(const std::vector<double>& xs, const std::vector<double>& ys,
+                  const std::vector<double>& zs, const GridFilled& filled);
 
 // Axis-aligned box [min, max], 12 outward triangles.
 TriMesh make_box(const Vec3& min, const Vec3& max);
