@@ -5,13 +5,13 @@
 #include <array>
 #include <cmath>
 #include <cstdlib>
-#include <map>
 #include <string>
 
 #include "dhfcast/access.h"
 #include "dhfcast/directions.h"
 #include "dhfcast/mesh.h"
 #include "dhfcast/tets.h"
+#include "support/test_support.h"
 
 namespace {
 
@@ -44,40 +44,15 @@ TetMesh voxel_tets(const TriMesh& surface, double h_mm) {
                                                                   (1 - u - v) * c.z());
       }
   }
-  TetMesh mesh;
-  std::map<std::array<int, 3>, std::int32_t> index;
-  auto vertex = [&](const std::array<int, 3>& g) {
-    auto [it, added] = index.emplace(g, 0);
-    if (added) {
-      it->second = static_cast<std::int32_t>(mesh.vertices.size());
-      mesh.vertices.push_back(origin + Vec3(g[0], g[1], g[2]) * h_mm);
-    }
-    return it->second;
-  };
-  const std::array<std::array<int, 3>, 6> perms = {
-      {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}}};
-  for (int i = 0; i < n[0]; ++i)
-    for (int j = 0; j < n[1]; ++j)
-      for (int k = 0; k < n[2]; ++k) {
-        const double z = origin.z() + (k + 0.5) * h_mm;
-        int above = 0;
-        for (double c : columns[static_cast<std::size_t>(i) * n[1] + j]) above += c > z;
-        if (above % 2 == 0) continue;
-        for (const auto& p : perms) {
-          std::array<int, 3> g{i, j, k};
-          Tet t;
-          t[0] = vertex(g);
-          for (int s = 0; s < 3; ++s) {
-            ++g[p[s]];
-            t[s + 1] = vertex(g);
-          }
-          mesh.tets.push_back(t);
-          if (tet_volume(mesh, static_cast<std::int32_t>(mesh.tets.size()) - 1) < 0)
-            std::swap(mesh.tets.back()[2], mesh.tets.back()[3]);
-        }
-      }
-  build_tet_adjacency(mesh);
-  return mesh;
+  std::array<std::vector<double>, 3> coords;
+  for (int a = 0; a < 3; ++a)
+    for (int g = 0; g <= n[a]; ++g) coords[a].push_back(origin[a] + g * h_mm);
+  return test::grid_tets(coords[0], coords[1], coords[2], [&](int i, int j, int k) {
+    const double z = origin.z() + (k + 0.5) * h_mm;
+    int above = 0;
+    for (double c : columns[static_cast<std::size_t>(i) * n[1] + j]) above += c > z;
+    return above % 2 == 1;
+  });
 }
 
 std::string model_path(const std::string& name) {
