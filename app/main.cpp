@@ -95,10 +95,11 @@ int run_decompose(const CliOptions& cli) {
   const double load_s = std::chrono::duration<double>(Clock::now() - t_start).count();
   const Box3 bbox = bounding_box(solid.mesh.vertices);
   const Vec3 size = bbox.max - bbox.min;
+  const double volume_mm3 = signed_volume(solid.mesh);
   if (!cli.quiet) {
     std::fprintf(stderr, "dhfcast: %s: %zu triangles, %.1f x %.1f x %.1f mm, %.0f mm3%s\n",
                  cli.input.c_str(), solid.mesh.triangles.size(), size.x(), size.y(), size.z(),
-                 signed_volume(solid.mesh),
+                 volume_mm3,
                  solid.flipped ? " (was inside out: flipped)" : "");
   }
 
@@ -106,7 +107,7 @@ int run_decompose(const CliOptions& cli) {
   const Decomposition d = decompose(solid.mesh, cli.decompose, std::ref(printer));
 
   InputInfo info{cli.input, static_cast<std::int64_t>(solid.mesh.triangles.size()),
-                 signed_volume(solid.mesh), bbox, solid.flipped};
+                 volume_mm3, bbox, solid.flipped};
   const double total_s = std::chrono::duration<double>(Clock::now() - t_start).count();
   write_output(cli.outdir, decomposition_json(info, cli.decompose, d, load_s, total_s), d,
                cli.force);
