@@ -1,6 +1,7 @@
 // Mesh input and output: read STL/OBJ/PLY/OFF, weld, validate, write binary STL.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string>
 
@@ -43,6 +44,12 @@ TriMesh read_mesh(const std::string& path);
 // Orientation sign is not a problem here: a negative volume is reported in volume_mm3 only.
 // Pre: vertices are welded (as read_mesh() returns them).
 MeshDiagnostics validate_mesh(const TriMesh& mesh);
+
+// Pairs of triangles of `mesh` (ascending indices, at most max_pairs pairs) that intersect other
+// than along the vertices or edge they share; exact predicates. Pre: `mesh` is a surface mesh
+// (every edge in at most two triangles, consistently oriented); else throws Error{Internal}.
+std::vector<std::array<std::int32_t, 2>> intersecting_triangles(const TriMesh& mesh,
+                                                                unsigned max_pairs);
 
 // Result of load_solid().
 struct LoadedSolid {

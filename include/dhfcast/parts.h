@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -19,6 +20,9 @@ struct Part {
   std::vector<std::int32_t> tets;  // tets of the tet mesh it is made of, ascending
   TriMesh mesh;  // closed, 2-manifold, outward boundary (vertices duplicated where the part
                  // touches itself at an edge or vertex only)
+  // triangle_neighbor[i]: the part on the other side of mesh.triangles[i], or -1 when the
+  // triangle lies on the solid's outer surface.
+  std::vector<std::int32_t> triangle_neighbor;
   double volume_mm3 = 0.0;
 };
 
@@ -30,6 +34,58 @@ struct Part {
 std::vector<Part> extract_parts(const TetMesh& tets, const std::vector<std::int32_t>& label,
                                 const std::vector<std::int32_t>& region,
                                 const std::vector<std::vector<Vec3>>& directions);
+
+// Options for smooth_interfaces().
+struct SmoothingOptions {
+  std::int32_t iterations = 40;  // Taubin step pairs
+  double step = 0.5;             // fraction of the way to the neighbours' average per step
+};
+
+// Whether `tet` may belong to part `part` (its direction is DHF-accessible there).
+using TetAllowsPart = std::function<bool(std::int32_t tet, std::int32_t part)>;
+
+// Smooths the staircase of tet faces between parts (paper §4.3.1) with volume-preserving
+// (Taubin) Laplacian steps: seams on the outer surface and the junction curves where three parts
+// meet are smoothed as polylines, interface surfaces as membranes. A seam vertex slides in the
+// surface's tangent plane, only inside the star of its tet vertex (the tets around it), and only
+// when every tet of that star allows both parts there, so the surface a part gains stays
+// DHF-accessible for its direction (the paper's tolerance region). Inside the solid a vertex
+// moves at most about one edge length. Where smoothing would fold a part's surface through
+// itself or collapse a part, those vertices and their neighbours keep their place. Vertices
+// shared by parts move identically in all of them, so interfaces stay shared exactly.
+// Pre: `parts` is extract_parts(tets, ...).
+void smooth_interfaces(const TetMesh& tets, std::vector<Part>& parts, const TetAllowsPart& allows,
+                       const SmoothingOptions& opts = {});
+
+// How smooth one interface between two parts is: the angles between the normals of
+// neighbouring triangles of the interface.
+struct InterfaceSmoothness {
+  std::int32_t part_a = 0, part_b = 0;  // part_a < part_b
+  std::int32_t triangles = 0;
+  double area_mm2 = 0.0;
+  double mean_angle_deg = 0.0;
+  double p95_angle_deg = 0.0;
+};
+
+// Smoothness of every interface (triangles with triangle_neighbor >= 0), by (part_a, part_b);
+// interfaces of fewer than two triangles are left out.
+std::vector<InterfaceSmoothness> interface_smoothness(const std::vector<Part>& parts);
+
+// The same angles over the parts' outer triangles (triangle_neighbor == -1): what the outer
+// surface itself has at the same mesh resolution. p95 in deg; mean in mean_angle_deg.
+InterfaceSmoothness outer_surface_smoothness(const std::vector<Part>& parts);
+
+// Makes each part's outer surface the input surface itself (DESIGN.md: the tet mesh only decides
+// who owns which region; the parts are cut from the exact input solid). Each part becomes
+// `solid` intersected with its region: the part's mesh with its outer triangles
+// (triangle_neighbor == -1), which only approximate the input surface, pushed outward past it.
+// Interfaces between parts are clipped where they leave the solid and stay the same surface
+// on both sides (same vertices and triangles, opposite orientation), so the parts fit exactly.
+// Updates mesh, triangle_neighbor and volume_mm3 of every part.
+// Pre: the parts' meshes tile the solid's volume up to `tolerance_mm` (largest distance from their
+// outer triangles to `solid`), and a vertex shared by two parts has the same coordinates in both.
+// Throws Error{Internal} when a boolean operation fails, naming the part.
+void cut_from_solid(const TriMesh& solid, std::vector<Part>& parts, double tolerance_mm);
 
 // How the parts go together.
 struct AssemblyPlan {

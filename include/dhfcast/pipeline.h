@@ -44,6 +44,10 @@ struct Decomposition {
   Labeling labeling;                 // of the whole solid (label -1: inaccessible)
   std::vector<InaccessibleRegion> inaccessible_regions;
   std::vector<Part> parts;
+  // Normal angles across each interface before and after smoothing, and over the outer surface
+  // at the same resolution.
+  std::vector<InterfaceSmoothness> raw_smoothness, smoothness;
+  InterfaceSmoothness outer_smoothness;
   AssemblyPlan assembly;
   double assembly_tolerance_mm = 0.0;  // penetration depth below which parts do not block
   StageTimes timings;

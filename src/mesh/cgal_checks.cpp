@@ -1,4 +1,5 @@
-// Exact predicates for validate_mesh(): the only file of the mesh stage that includes CGAL.
+// Exact predicates for validate_mesh() and intersecting_triangles(): the only file of the mesh
+// stage that includes CGAL.
 #include "cgal_checks.h"
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
@@ -11,6 +12,7 @@
 #include <vector>
 
 #include "dhfcast/error.h"
+#include "dhfcast/mesh.h"
 
 namespace dhfcast::detail {
 
@@ -27,7 +29,8 @@ bool collinear_exact(const Vec3& a, const Vec3& b, const Vec3& c) {
   return CGAL::collinear(to_point(a), to_point(b), to_point(c));
 }
 
-SelfIntersections find_self_intersections(const TriMesh& mesh, unsigned max_pairs) {
+std::vector<std::array<std::int32_t, 2>> intersecting_pairs(const TriMesh& mesh,
+                                                             unsigned max_pairs) {
   SurfaceMesh sm;
   sm.reserve(static_cast<SurfaceMesh::size_type>(mesh.vertices.size()),
              static_cast<SurfaceMesh::size_type>(3 * mesh.triangles.size() / 2),
@@ -39,23 +42,38 @@ SelfIntersections find_self_intersections(const TriMesh& mesh, unsigned max_pair
         sm.add_face(SurfaceMesh::Vertex_index(t[0]), SurfaceMesh::Vertex_index(t[1]),
                     SurfaceMesh::Vertex_index(t[2]));
     if (f == SurfaceMesh::null_face())
-      throw Error(ErrorCode::Internal,
-                  "internal error: a mesh that passed the topology checks is not a surface mesh");
+      throw Error(ErrorCode::Internal, "internal error: the mesh is not a surface mesh");
   }
 
   std::vector<std::pair<FaceIndex, FaceIndex>> found;
   CGAL::Polygon_mesh_processing::self_intersections<CGAL::Sequential_tag>(
       sm, std::back_inserter(found), CGAL::parameters::maximum_number(max_pairs));
-
-  SelfIntersections result;
-  result.pairs = static_cast<std::int64_t>(found.size());
-  result.limit_reached = found.size() >= max_pairs;
+  std::vector<std::array<std::int32_t, 2>> pairs;
   for (const auto& [f, g] : found) {
     std::array<std::int32_t, 2> pair = {static_cast<std::int32_t>(f), static_cast<std::int32_t>(g)};
     if (pair[0] > pair[1]) std::swap(pair[0], pair[1]);
-    if (result.first[0] < 0 || pair < result.first) result.first = pair;
+    pairs.push_back(pair);
   }
+  std::sort(pairs.begin(), pairs.end());
+  return pairs;
+}
+
+SelfIntersections find_self_intersections(const TriMesh& mesh, unsigned max_pairs) {
+  const std::vector<std::array<std::int32_t, 2>> pairs = intersecting_pairs(mesh, max_pairs);
+  SelfIntersections result;
+  result.pairs = static_cast<std::int64_t>(pairs.size());
+  result.limit_reached = pairs.size() >= max_pairs;
+  if (!pairs.empty()) result.first = pairs.front();
   return result;
 }
 
 }  // namespace dhfcast::detail
+
+namespace dhfcast {
+
+std::vector<std::array<std::int32_t, 2>> intersecting_triangles(const TriMesh& mesh,
+                                                                unsigned max_pairs) {
+  return detail::intersecting_pairs(mesh, max_pairs);
+}
+
+}  // namespace dhfcast

@@ -52,6 +52,7 @@ struct BoundaryFace {
   std::int32_t tet;
   int face;
   std::array<std::int32_t, 3> v;  // tet-mesh vertex indices, counter-clockwise seen from outside
+  std::int32_t neighbor_part;     // part across the face, -1 on the solid's outer surface
 };
 
 // Splits the tets into face-connected components of equal (region, label). Components are
@@ -83,9 +84,10 @@ std::vector<std::int32_t> label_components(const TetMesh& tets,
 }
 
 // Builds the boundary of one part (`part_tets` ascending, all with part_of == p) as a closed,
-// 2-manifold, outward mesh.
-TriMesh part_boundary(const TetMesh& tets, const std::vector<std::int32_t>& part_of, std::int32_t p,
-                      const std::vector<std::int32_t>& part_tets) {
+// 2-manifold, outward mesh, and the part across each of its triangles.
+void part_boundary(const TetMesh& tets, const std::vector<std::int32_t>& part_of, std::int32_t p,
+                   const std::vector<std::int32_t>& part_tets, TriMesh& mesh,
+                   std::vector<std::int32_t>& triangle_neighbor) {
   // --- 1. boundary faces, and where to find each one from (tet, local face) ---
   std::vector<BoundaryFace> faces;
   std::vector<std::int32_t> face_at(part_tets.size() * 4, -1);  // [position of tet * 4 + face]
@@ -96,7 +98,8 @@ TriMesh part_boundary(const TetMesh& tets, const std::vector<std::int32_t>& part
       if (u >= 0 && part_of[u] == p) continue;
       face_at[k * 4 + i] = static_cast<std::int32_t>(faces.size());
       const Tet& tet = tets.tets[t];
-      faces.push_back({t, i, {tet[kTetFaces[i][0]], tet[kTetFaces[i][1]], tet[kTetFaces[i][2]]}});
+      faces.push_back({t, i, {tet[kTetFaces[i][0]], tet[kTetFaces[i][1]], tet[kTetFaces[i][2]]},
+                       u < 0 ? -1 : part_of[u]});
     }
   }
   auto face_index = [&](std::int32_t t, int i) {
@@ -155,7 +158,8 @@ TriMesh part_boundary(const TetMesh& tets, const std::vector<std::int32_t>& part
   }
 
   // --- 3. one vertex per fan of corners, numbered in order of first use ---
-  TriMesh mesh;
+  mesh = {};
+  triangle_neighbor.clear();
   std::vector<std::int32_t> vertex_of_root(static_cast<std::size_t>(num_faces) * 3, -1);
   std::vector<std::int32_t> corner_vertex(static_cast<std::size_t>(num_faces) * 3);
   for (std::int32_t c = 0; c < num_faces * 3; ++c) {
@@ -220,8 +224,8 @@ TriMesh part_boundary(const TetMesh& tets, const std::vector<std::int32_t>& part
         mesh.triangles.push_back({m[0], m[1], m[2]});
         break;
     }
+    triangle_neighbor.resize(mesh.triangles.size(), faces[f].neighbor_part);
   }
-  return mesh;
 }
 
 }  // namespace
@@ -272,7 +276,7 @@ std::vector<Part> extract_parts(const TetMesh& tets, const std::vector<std::int3
 
   // --- 2. boundary meshes; parts are independent ---
   tbb::parallel_for(std::int32_t{0}, num_parts, [&](std::int32_t id) {
-    parts[id].mesh = part_boundary(tets, part_of, id, parts[id].tets);
+    part_boundary(tets, part_of, id, parts[id].tets, parts[id].mesh, parts[id].triangle_neighbor);
   });
   return parts;
 }

@@ -183,6 +183,16 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   if (std::find(label.begin(), label.end(), -1) != label.end())
     throw Error(ErrorCode::Internal, "a tet region has no direction at all");
   d.parts = extract_parts(d.tets, label, region, region_directions);
+  d.raw_smoothness = interface_smoothness(d.parts);
+  // Parts of a region decomposed again carry that region's own accessibility, which is not kept:
+  // their interfaces stay as they are.
+  const TetAllowsPart allows = [&](std::int32_t t, std::int32_t p) {
+    const Part& part = d.parts[p];
+    return part.region == 0 && d.access.feasible.get(t, part.direction_index);
+  };
+  smooth_interfaces(d.tets, d.parts, allows);
+  d.smoothness = interface_smoothness(d.parts);
+  d.outer_smoothness = outer_surface_smoothness(d.parts);
   // The parts are unions of tets, so neighbours interlock along their interfaces by up to about
   // one tet: contact that shallow is the interfaces' roughness, not a blocking part.
   d.assembly_tolerance_mm = opts.access.epsilon_mm + mean_edge_length(d.tets);

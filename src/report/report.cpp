@@ -81,6 +81,23 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                        {"volume_mm3", r.volume_mm3},
                        {"still_inaccessible_tets", r.still_inaccessible_tets}});
   j["inaccessible_regions"] = regions;
+
+  // Normal angles between neighbouring interface triangles, before and after smoothing.
+  auto smoothness = [](const InterfaceSmoothness& s) {
+    return ordered_json{{"triangles", s.triangles},
+                        {"area_mm2", s.area_mm2},
+                        {"mean_angle_deg", s.mean_angle_deg},
+                        {"p95_angle_deg", s.p95_angle_deg}};
+  };
+  ordered_json interfaces = ordered_json::array();
+  for (const InterfaceSmoothness& s : d.smoothness) {
+    ordered_json ji = {{"parts", {s.part_a, s.part_b}}, {"smoothed", smoothness(s)}};
+    for (const InterfaceSmoothness& r : d.raw_smoothness)
+      if (r.part_a == s.part_a && r.part_b == s.part_b) ji["raw"] = smoothness(r);
+    interfaces.push_back(ji);
+  }
+  j["interfaces"] = interfaces;
+  j["outer_surface_smoothness"] = smoothness(d.outer_smoothness);
   j["segmentation"] = {{"energy", d.labeling.energy},
                        {"candidate_directions", d.labeling.candidate_labels},
                        {"best_restart", d.labeling.best_restart}};
