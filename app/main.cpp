@@ -177,6 +177,9 @@ int main(int argc, char** argv) {
   dec->add_option("--restarts", o.segment.restarts, "Randomized graph-cut runs")
       ->capture_default_str();
   dec->add_option("--seed", o.segment.seed, "Random seed")->capture_default_str();
+  dec->add_option("--smoothing", o.smoothing.iterations,
+                  "Interface smoothing steps (0: keep the tet faces)")
+      ->capture_default_str();
   dec->add_option("--scale", cli.scale, "Multiply the input's coordinates by this")
       ->capture_default_str();
   dec->add_option("--units", cli.units, "Units of the input file")

@@ -77,6 +77,22 @@ void expect_valid_decomposition(const TriMesh& input, const Decomposition& d,
             d.tets.boundary_tolerance_mm + 1e-9);
   EXPECT_LE(d.tets.boundary_tolerance_mm, 4 * opts.tets.facet_distance_mm);
 
+  // Interfaces are smoothed: the area-weighted normal angle between neighbouring interface
+  // triangles is well below that of the raw tet faces.
+  double raw_sum = 0, raw_area = 0, smooth_sum = 0, smooth_area = 0;
+  for (const InterfaceSmoothness& s : d.raw_smoothness) {
+    raw_sum += s.mean_angle_deg * s.area_mm2;
+    raw_area += s.area_mm2;
+  }
+  for (const InterfaceSmoothness& s : d.smoothness) {
+    smooth_sum += s.mean_angle_deg * s.area_mm2;
+    smooth_area += s.area_mm2;
+  }
+  if (raw_area > 0 && opts.smoothing.iterations > 0) {
+    EXPECT_GT(smooth_area, 0.0);
+    EXPECT_LT(smooth_sum / smooth_area, 0.6 * raw_sum / raw_area);
+  }
+
   // The assembly order is a permutation of the part ids. When the planner says it is
   // collision-free, every part's blockers come after it; otherwise it names the blocking cycle.
   std::set<std::int32_t> ids(d.assembly.order.begin(), d.assembly.order.end());

@@ -20,6 +20,7 @@ struct DecomposeOptions {
   std::int32_t directions = 512;  // number of candidate directions
   AccessibilityOptions access;
   SegmentOptions segment;
+  SmoothingOptions smoothing;
 };
 
 // Wall-clock seconds per stage.

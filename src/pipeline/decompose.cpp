@@ -109,6 +109,8 @@ void validate_options(const DecomposeOptions& o) {
   require(std::isfinite(o.segment.c_mm) && o.segment.c_mm > 0, "--c must be > 0");
   require(std::isfinite(o.segment.beta_mm) && o.segment.beta_mm >= 0, "--beta must be >= 0");
   require(std::isfinite(o.segment.lambda) && o.segment.lambda >= 0, "--lambda must be >= 0");
+  require(o.smoothing.iterations >= 0 && o.smoothing.iterations <= 10000,
+          "--smoothing must be between 0 and 10000");
   require(o.segment.restarts >= 1 && o.segment.restarts <= 1000,
           "--restarts must be between 1 and 1000");
 }
@@ -183,14 +185,14 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   if (std::find(label.begin(), label.end(), -1) != label.end())
     throw Error(ErrorCode::Internal, "a tet region has no direction at all");
   d.parts = extract_parts(d.tets, label, region, region_directions);
-  d.raw_smoothness = interface_smoothness(d.parts);
   // Parts of a region decomposed again carry that region's own accessibility, which is not kept:
   // their interfaces stay as they are.
   const TetAllowsPart allows = [&](std::int32_t t, std::int32_t p) {
     const Part& part = d.parts[p];
     return part.region == 0 && d.access.feasible.get(t, part.direction_index);
   };
-  smooth_interfaces(d.tets, d.parts, allows);
+  d.raw_smoothness = interface_smoothness(d.parts);
+  smooth_interfaces(d.tets, d.parts, allows, opts.smoothing);
   d.smoothness = interface_smoothness(d.parts);
   d.outer_smoothness = outer_surface_smoothness(d.parts);
   // The parts are unions of tets, so neighbours interlock along their interfaces by up to about

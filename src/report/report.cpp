@@ -50,6 +50,7 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                      {"beta_mm", opts.segment.beta_mm},
                      {"lambda", opts.segment.lambda},
                      {"restarts", opts.segment.restarts},
+                     {"smoothing_iterations", opts.smoothing.iterations},
                      {"seed", opts.segment.seed},
                      {"target_tets", opts.tets.target_tets},
                      {"facet_distance_mm", opts.tets.facet_distance_mm}};
