@@ -9,6 +9,7 @@
 #include <cmath>
 #include <numbers>
 #include <queue>
+#include <thread>
 
 #include "dhfcast/error.h"
 #include "parallel_rays.h"
@@ -197,57 +198,67 @@ AccessibilityField compute_accessibility(const TriMesh& surface, const TetMesh& 
 
   // --- 1. cast rays, one direction per task ---
   // First a cheap pass over all samples settles most rays from per-cell depth bounds.
-  // Then tets are visited in Morton order and the rest of their samples tested vertices first
-  // (a vertex is shared by ~20 tets): a tet is infeasible at its first blocked sample, so its
+  // Then tets are visited in Morton order: a tet with a sample already known to be blocked is
+  // infeasible at once; otherwise its unsettled samples are tested vertices first (a vertex is
+  // shared by ~20 tets) and the tet is infeasible at its first blocked sample, so its
   // remaining samples are never tested. Sample results are memoized per direction. Each
   // direction writes its own column and the set of rays cast depends on the direction only:
   // results do not depend on the scheduling.
   std::vector<std::int32_t> tet_order(num_tets);
   for (std::int32_t t = 0; t < num_tets; ++t)
     tet_order[samples.of_tet[t][14] - samples.kind_begin[detail::kTetSample]] = t;
+  std::vector<std::array<std::int32_t, 15>> ordered_samples(num_tets);  // of_tet in that order
+  for (std::int32_t i = 0; i < num_tets; ++i) ordered_samples[i] = samples.of_tet[tet_order[i]];
   const std::int32_t column_words = (num_tets + 63) / 64;
   std::vector<std::vector<std::uint64_t>> columns(num_dirs);
   const TriMesh sorted_surface = detail::morton_sorted(surface);
-  tbb::enumerable_thread_specific<ParallelRays> projections;  // buffers reused across directions
+  struct Scratch {  // buffers reused across directions
+    ParallelRays rays;
+    std::vector<std::uint8_t> state;
+  };
+  tbb::enumerable_thread_specific<Scratch> scratch;
   std::atomic<std::int64_t> rays{0};
+  std::atomic<std::int32_t> done{0};
   const std::size_t num_samples = samples.points.size();
-  // Progress is reported between chunks; few chunks, as each ends with an idle thread waiting.
-  const std::int32_t chunk = std::max(2, num_dirs / 16);
-  for (std::int32_t d0 = 0; d0 < num_dirs; d0 += chunk) {
-    tbb::parallel_for(
-        tbb::blocked_range<std::int32_t>(d0, std::min(num_dirs, d0 + chunk), 1),
-        [&](const tbb::blocked_range<std::int32_t>& r) {
-          ParallelRays& parallel = projections.local();
-          for (std::int32_t d = r.begin(); d != r.end(); ++d) {
-            parallel.project(sorted_surface, dirs[d]);
-            SampleTester tester(scene, parallel, dirs[d], opts.epsilon_mm);
-            enum : std::uint8_t { kUnknown = 0, kOpen, kBlocked };
-            std::vector<std::uint8_t> state(num_samples);
-            for (std::size_t s = 0; s < num_samples; ++s)
-              state[s] =
-                  parallel.surely_accessible(samples.points[s], opts.epsilon_mm) ? kOpen : kUnknown;
-            std::vector<std::uint64_t>& column = columns[d];
-            column.assign(column_words, 0);
-            std::int64_t cast = static_cast<std::int64_t>(num_samples);
-            for (std::int32_t t : tet_order) {
-              bool ok = true;
-              for (std::int32_t s : samples.of_tet[t]) {
-                if (state[s] == kUnknown) {
-                  state[s] = tester.accessible(samples.points[s]) ? kOpen : kBlocked;
-                  ++cast;
-                }
-                if (state[s] == kBlocked) {
-                  ok = false;
-                  break;
-                }
-              }
-              if (ok) column[t >> 6] |= std::uint64_t{1} << (t & 63);
+  // One loop over all directions, so no thread waits for another before the end; progress is
+  // reported by the calling thread whenever it finishes a direction.
+  const std::thread::id caller = std::this_thread::get_id();
+  tbb::parallel_for(
+      tbb::blocked_range<std::int32_t>(0, num_dirs, 1),
+      [&](const tbb::blocked_range<std::int32_t>& r) {
+        Scratch& local = scratch.local();
+        ParallelRays& parallel = local.rays;
+        std::vector<std::uint8_t>& state = local.state;
+        for (std::int32_t d = r.begin(); d != r.end(); ++d) {
+          parallel.project(sorted_surface, dirs[d]);
+          SampleTester tester(scene, parallel, dirs[d], opts.epsilon_mm);
+          state.resize(num_samples);
+          parallel.settle(samples.points, opts.epsilon_mm, state.data());
+          std::vector<std::uint64_t>& column = columns[d];
+          column.assign(column_words, 0);
+          std::int64_t cast = static_cast<std::int64_t>(num_samples);
+          for (std::int32_t i = 0; i < num_tets; ++i) {
+            const std::array<std::int32_t, 15>& slots = ordered_samples[i];
+            bool ok = std::none_of(slots.begin(), slots.end(), [&](std::int32_t s) {
+              return state[s] == ParallelRays::kBlocked;
+            });
+            for (std::size_t k = 0; ok && k < slots.size(); ++k) {
+              std::uint8_t& st = state[slots[k]];
+              if (st != ParallelRays::kUnknown) continue;
+              st = tester.accessible(samples.points[slots[k]]) ? ParallelRays::kOpen
+                                                               : ParallelRays::kBlocked;
+              ok = st == ParallelRays::kOpen;
+              ++cast;
             }
-            rays += cast;
+            const std::int32_t t = tet_order[i];
+            if (ok) column[t >> 6] |= std::uint64_t{1} << (t & 63);
           }
-        });
-    if (progress) progress(0.95 * std::min(num_dirs, d0 + chunk) / num_dirs);
-  }
+          rays += cast;
+          const std::int32_t finished = ++done;
+          if (progress && std::this_thread::get_id() == caller)
+            progress(0.95 * finished / num_dirs);
+        }
+      });
   // Columns (per direction) to rows (per tet).
   tbb::parallel_for(tbb::blocked_range<std::int32_t>(0, num_tets, 1024),
                     [&](const tbb::blocked_range<std::int32_t>& r) {

@@ -1,5 +1,7 @@
 #include "tet_samples.h"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <numeric>
 
@@ -77,7 +79,7 @@ TetSamples tet_samples(const TetMesh& tets) {
   s.kind_begin[kNumSampleKinds] = static_cast<std::int32_t>(s.points.size());
 
   // Sample ids before reordering, by key lookup.
-  for (std::int32_t ti = 0; ti < num_tets; ++ti) {
+  tbb::parallel_for(std::int32_t{0}, num_tets, [&](std::int32_t ti) {
     const Tet& t = tets.tets[ti];
     auto& slots = s.of_tet[ti];
     for (int i = 0; i < 4; ++i)
@@ -98,7 +100,7 @@ TetSamples tet_samples(const TetMesh& tets) {
                                                 faces.begin());
     }
     slots[14] = s.kind_begin[kTetSample] + ti;
-  }
+  });
 
   const Box3 box = bounding_box(s.points);
   for (int k = 0; k < kNumSampleKinds; ++k) {
