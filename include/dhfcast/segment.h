@@ -29,16 +29,22 @@ struct Labeling {
   double energy = 0.0;              // eq. 1 of the best restart (infeasible tets excluded)
   std::int32_t candidate_labels = 0;  // directions left after removing duplicate and dominated
                                       // feasibility sets
-  std::int32_t best_restart = 0;
+  std::int32_t best_restart = 0;  // the chosen candidate: r < restarts is randomized restart r,
+                                  // restarts + c the c-th covering candidate (see segment())
 };
 
 // Minimizes eq. 1: smooth data cost (eq. 3) + face-area and seam smoothness + label cost, by
 // alpha-expansion with label costs (Delong et al. 2012) on Kolmogorov's max-flow. Runs
-// opts.restarts times with randomized initial labelings and label orders (in parallel); the best
-// run has the fewest parts, ties broken by the smallest variance of part volumes, then by energy,
-// then by restart index. Labels are the candidate directions only: a direction whose feasible set
-// equals a lower-indexed one's, or lies strictly inside another's, can be replaced by it without
-// raising the energy, and is dropped. Tets feasible for no direction take no part in eq. 1.
+// opts.restarts times with randomized initial labelings and label orders (in parallel), plus a
+// few candidates minimized with only a small set of labels that together allow every tet (greedy
+// covers by volume). Eq. 1 often prefers more, smaller parts than needed (a part near its
+// neighbours' infeasible regions lowers their data cost), so each candidate's part count is then
+// lowered by moves that keep every tet feasible (merging parts, sharing a part among its
+// neighbours, joining two parts of one label). The best candidate has the fewest parts, ties
+// broken by the smallest variance of part volumes, then by energy, then by index. Labels are
+// the candidate directions only: a direction whose feasible set equals a lower-indexed one's,
+// or lies strictly inside another's, can be replaced by it without raising the energy, and is
+// dropped. Tets feasible for no direction take no part in eq. 1.
 // Pre: field was computed on `tets`, which has adjacency. Throws Error{InvalidOptions} for
 // negative weights, c_mm <= 0 or restarts < 1, Error{InvalidInput} when the field's or the
 // adjacency's size does not match the tets.

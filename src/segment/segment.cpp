@@ -4,17 +4,22 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <bit>
-#include <map>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <string>
 
 #include "alpha_expansion.h"
+#include "reduce_parts.h"
 #include "dhfcast/error.h"
 
 namespace dhfcast {
 namespace {
+
+// Candidates solved on a small covering label set, besides the randomized restarts.
+constexpr std::int32_t kCoveringCandidates = 12;
 
 void check_options(const SegmentOptions& o) {
   const auto fail = [](const std::string& what) {
@@ -113,66 +118,71 @@ PartStats part_stats(const TetMesh& tets, const std::vector<double>& volume_mm3,
   return out;
 }
 
-// Relabels whole parts into a neighbouring part's direction wherever every tet of the part is
-// feasible for it, smallest part first, until no part can merge. Each merge removes a part and
-// keeps every tet feasible; alpha-expansion cannot find these moves when the smoothness saved
-// is smaller than the data cost paid, yet fewer parts is what the caster wants most.
-void merge_parts(const TetMesh& tets, const DirectionBits& feasible,
-                 const std::vector<double>& volume_mm3, std::vector<std::int32_t>& label) {
-  const auto num_tets = static_cast<std::int32_t>(tets.tets.size());
-  const std::int32_t words = feasible.words_per_tet();
-  for (bool merged = true; merged;) {
-    merged = false;
-    // Components of equal label, with their volumes.
-    std::vector<std::int32_t> component(num_tets, -1);
-    std::vector<std::vector<std::int32_t>> members;
-    for (std::int32_t s = 0; s < num_tets; ++s) {
-      if (component[s] >= 0 || label[s] < 0) continue;
-      const auto c = static_cast<std::int32_t>(members.size());
-      members.push_back({s});
-      component[s] = c;
-      for (std::size_t k = 0; k < members[c].size(); ++k) {
-        const std::int32_t t = members[c][k];
-        for (std::int32_t u : tets.neighbors[t])
-          if (u >= 0 && component[u] < 0 && label[u] == label[t]) {
-            component[u] = c;
-            members[c].push_back(u);
-          }
+// Label sets that together allow every node, built greedily: each next label allows the most
+// volume not yet allowed. Set c starts from the label with the c-th largest feasible volume, so
+// the sets differ. Identical sets are returned once.
+std::vector<std::vector<std::int32_t>> covering_label_sets(const LabelProblem& problem,
+                                                           const std::vector<double>& volume_mm3,
+                                                           std::int32_t count) {
+  const std::int32_t n = problem.num_nodes, k = problem.num_labels;
+  const std::size_t words = (static_cast<std::size_t>(n) + 63) / 64;
+  std::vector<std::uint64_t> cols(words * k, 0);
+  std::vector<double> feasible_mm3(k, 0.0);
+  tbb::parallel_for(std::int32_t{0}, k, [&](std::int32_t l) {
+    const double* d = problem.data.data() + static_cast<std::size_t>(l) * n;
+    for (std::int32_t i = 0; i < n; ++i) {
+      if (std::isfinite(d[i])) {
+        cols[l * words + i / 64] |= 1ull << (i % 64);
+        feasible_mm3[l] += volume_mm3[i];
       }
     }
-    std::vector<std::pair<double, std::int32_t>> by_volume;
-    for (std::int32_t c = 0; c < static_cast<std::int32_t>(members.size()); ++c) {
-      double v = 0.0;
-      for (std::int32_t t : members[c]) v += volume_mm3[t];
-      by_volume.emplace_back(v, c);
+  });
+  std::vector<std::int32_t> by_volume(k);
+  std::iota(by_volume.begin(), by_volume.end(), 0);
+  std::stable_sort(by_volume.begin(), by_volume.end(), [&](std::int32_t a, std::int32_t b) {
+    return feasible_mm3[a] > feasible_mm3[b];
+  });
+  std::vector<std::vector<std::int32_t>> sets;
+  for (std::int32_t c = 0; c < std::min(count, k); ++c) {
+    std::vector<std::int32_t> set{by_volume[c]};
+    std::vector<std::uint64_t> open(words, ~0ull);  // nodes no label of the set allows
+    if (n % 64 != 0) open.back() = (1ull << (n % 64)) - 1;
+    for (;;) {
+      for (std::size_t w = 0; w < words; ++w) open[w] &= ~cols[set.back() * words + w];
+      if (std::all_of(open.begin(), open.end(), [](std::uint64_t w) { return w == 0; })) break;
+      std::vector<double> gain_mm3(k, 0.0);
+      tbb::parallel_for(std::int32_t{0}, k, [&](std::int32_t l) {
+        for (std::size_t w = 0; w < words; ++w)
+          for (std::uint64_t bits = cols[l * words + w] & open[w]; bits != 0; bits &= bits - 1)
+            gain_mm3[l] += volume_mm3[w * 64 + std::countr_zero(bits)];
+      });
+      set.push_back(static_cast<std::int32_t>(
+          std::max_element(gain_mm3.begin(), gain_mm3.end()) - gain_mm3.begin()));
     }
-    std::sort(by_volume.begin(), by_volume.end());
-    for (const auto& [volume, c] : by_volume) {
-      // Directions feasible for every tet of the part, and the interface area per neighbour label.
-      std::vector<std::uint64_t> common(feasible.row(members[c][0]),
-                                        feasible.row(members[c][0]) + words);
-      std::map<std::int32_t, double> interface_mm2;
-      for (std::int32_t t : members[c]) {
-        for (std::int32_t w = 0; w < words; ++w) common[w] &= feasible.row(t)[w];
-        for (int f = 0; f < 4; ++f) {
-          const std::int32_t u = tets.neighbors[t][f];
-          if (u >= 0 && label[u] >= 0 && component[u] != c)
-            interface_mm2[label[u]] += tet_face_area(tets, t, f);
-        }
-      }
-      std::int32_t target = -1;
-      double best_area = 0.0;
-      for (const auto& [l, area] : interface_mm2)
-        if (((common[l >> 6] >> (l & 63)) & 1u) && area > best_area) {
-          best_area = area;
-          target = l;
-        }
-      if (target < 0) continue;
-      for (std::int32_t t : members[c]) label[t] = target;
-      merged = true;
-      break;  // components changed: recompute them
-    }
+    std::sort(set.begin(), set.end());
+    if (std::find(sets.begin(), sets.end(), set) == sets.end()) sets.push_back(std::move(set));
   }
+  return sets;
+}
+
+// Minimizes eq. 1 with only the labels in `subset` (which together allow every node); returns
+// the labeling in the full problem's labels.
+std::vector<std::int32_t> solve_with_labels(const LabelProblem& problem,
+                                            const std::vector<std::int32_t>& subset,
+                                            std::uint64_t seed) {
+  const std::size_t n = static_cast<std::size_t>(problem.num_nodes);
+  LabelProblem sub;
+  sub.num_nodes = problem.num_nodes;
+  sub.num_labels = static_cast<std::int32_t>(subset.size());
+  sub.edges = problem.edges;
+  for (std::int32_t l : subset) {
+    sub.data.insert(sub.data.end(), problem.data.begin() + l * n,
+                    problem.data.begin() + (l + 1) * n);
+    sub.label_cost.push_back(problem.label_cost[l]);
+  }
+  std::vector<std::int32_t> labels = minimize_labeling(sub, seed, 1);
+  for (std::int32_t& l : labels) l = subset[l];
+  return labels;
 }
 
 }  // namespace
@@ -247,29 +257,61 @@ Labeling segment(const TetMesh& tets, const AccessibilityField& field, const Seg
         {node_of[e.tet_a], node_of[e.tet_b], beta2 * (1.0 + e.visibility * e.length_mm)});
   }
 
-  // --- 5. label cost (§4.2.3) and the randomized restarts ---
+  // --- 5. label cost (§4.2.3), the randomized restarts and the covering candidates ---
   problem.label_cost.assign(num_labels, opts.lambda * total_volume(tets));
   const detail::ExpansionSolver solver(problem);
-  const std::vector<detail::ExpansionRun> runs = solver.run_all(opts.seed, opts.restarts, progress);
+  const Progress restarts_progress = [&](double f) {
+    if (progress) progress(0.8 * f);
+  };
+  const std::vector<detail::ExpansionRun> runs =
+      solver.run_all(opts.seed, opts.restarts, restarts_progress);
+  std::vector<std::vector<std::int32_t>> candidates;
+  for (const detail::ExpansionRun& run : runs) candidates.push_back(run.labels);
+  std::vector<double> node_volume_mm3(num_nodes);
+  for (std::int32_t n = 0; n < num_nodes; ++n) node_volume_mm3[n] = volume_mm3[tet_of[n]];
+  const std::vector<std::vector<std::int32_t>> covers =
+      covering_label_sets(problem, node_volume_mm3, kCoveringCandidates);
+  candidates.resize(runs.size() + covers.size());
+  tbb::parallel_for(std::size_t{0}, covers.size(), [&](std::size_t c) {
+    const std::uint64_t seed = detail::restart_seed(~opts.seed, static_cast<std::int32_t>(c));
+    candidates[runs.size() + c] = solve_with_labels(problem, covers[c], seed);
+  });
 
-  // --- 6. best restart: fewest parts, then most even part volumes, then lowest energy ---
-  std::vector<std::vector<std::int32_t>> labels(runs.size());
-  std::vector<PartStats> stats(runs.size());
-  tbb::parallel_for(std::size_t{0}, runs.size(), [&](std::size_t r) {
+  // --- 6. best candidate: fewest parts, then most even part volumes, then lowest energy ---
+  // Each candidate's parts are first reduced (reduce_parts.h): fewer parts is what the caster
+  // wants most, and alpha-expansion cannot find these moves when the energy they save is
+  // smaller than the data cost they add.
+  std::vector<std::array<std::int32_t, 4>> face_nodes(num_nodes);
+  std::vector<Vec3> node_centre_mm(num_nodes);
+  for (std::int32_t n = 0; n < num_nodes; ++n) {
+    for (int f = 0; f < 4; ++f) {
+      const std::int32_t u = tets.neighbors[tet_of[n]][f];
+      face_nodes[n][f] = u >= 0 ? node_of[u] : -1;
+    }
+    node_centre_mm[n] = Vec3::Zero();
+    for (std::int32_t v : tets.tets[tet_of[n]]) node_centre_mm[n] += 0.25 * tets.vertices[v];
+  }
+  const detail::PartReducer reducer(problem, std::move(face_nodes), std::move(node_volume_mm3),
+                                     std::move(node_centre_mm));
+  std::vector<std::vector<std::int32_t>> labels(candidates.size());
+  std::vector<PartStats> stats(candidates.size());
+  std::vector<double> energy(candidates.size());
+  tbb::parallel_for(std::size_t{0}, candidates.size(), [&](std::size_t r) {
+    reducer.reduce(candidates[r], detail::restart_seed(opts.seed, static_cast<std::int32_t>(r)));
+    energy[r] = labeling_energy(problem, candidates[r]);
     labels[r].assign(num_tets, -1);
-    for (std::int32_t n = 0; n < num_nodes; ++n) labels[r][tet_of[n]] = dirs[runs[r].labels[n]];
-    merge_parts(tets, field.feasible, volume_mm3, labels[r]);
+    for (std::int32_t n = 0; n < num_nodes; ++n) labels[r][tet_of[n]] = dirs[candidates[r][n]];
     stats[r] = part_stats(tets, volume_mm3, labels[r]);
   });
   std::size_t best = 0;
-  for (std::size_t r = 1; r < runs.size(); ++r) {
+  for (std::size_t r = 1; r < candidates.size(); ++r) {
     const PartStats& a = stats[r];
     const PartStats& b = stats[best];
     if (a.parts != b.parts) {
       if (a.parts < b.parts) best = r;
     } else if (a.volume_variance_mm6 != b.volume_variance_mm6) {
       if (a.volume_variance_mm6 < b.volume_variance_mm6) best = r;
-    } else if (runs[r].energy < runs[best].energy) {
+    } else if (energy[r] < energy[best]) {
       best = r;
     }
   }
@@ -284,8 +326,9 @@ Labeling segment(const TetMesh& tets, const AccessibilityField& field, const Seg
   }
   for (char u : used) out.num_labels += u;
   out.num_components = stats[best].parts;
-  out.energy = labeling_energy(problem, node_labels);
+  out.energy = energy[best];
   out.best_restart = static_cast<std::int32_t>(best);
+  if (progress) progress(1.0);
   return out;
 }
 
