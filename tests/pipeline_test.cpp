@@ -180,7 +180,7 @@ TEST_P(ExtendedModels, ValidDecomposition) {
   const TriMesh input = test::load_scaled(path, 0.0);
   const DecomposeOptions opts = fast_options(12000);
   const Decomposition d = decompose(input, opts);
-  expect_valid_decomposition(input, d, opts);
+  expect_valid_decomposition(input, d, opts, 0.85);
 }
 
 INSTANTIATE_TEST_SUITE_P(Models, ExtendedModels,
