@@ -189,7 +189,9 @@ AccessibilityField compute_accessibility(const TriMesh& surface, const TetMesh& 
   std::vector<Vec3> dirs(directions);
   for (Vec3& d : dirs) d.normalize();
 
-  const RayScene scene(surface);
+  // Triangles close in space are close in memory, for both kinds of ray queries.
+  const TriMesh sorted_surface = detail::morton_sorted(surface);
+  const RayScene scene(sorted_surface);
   const detail::TetSamples samples = detail::tet_samples(tets);
   AccessibilityField field;
   field.feasible = DirectionBits(num_tets, num_dirs);
@@ -211,7 +213,6 @@ AccessibilityField compute_accessibility(const TriMesh& surface, const TetMesh& 
   for (std::int32_t i = 0; i < num_tets; ++i) ordered_samples[i] = samples.of_tet[tet_order[i]];
   const std::int32_t column_words = (num_tets + 63) / 64;
   std::vector<std::vector<std::uint64_t>> columns(num_dirs);
-  const TriMesh sorted_surface = detail::morton_sorted(surface);
   struct Scratch {  // buffers reused across directions
     ParallelRays rays;
     std::vector<std::uint8_t> state;

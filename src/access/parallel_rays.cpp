@@ -182,12 +182,17 @@ void ParallelRays::crossings(const Vec3& origin, double merge_tolerance_mm,
   auto side = [qx, qy](const ProjectedTri& pt, int j, float& e) {
     const float value = pt.a[j] * (qx - pt.x[j]) + pt.b[j] * (qy - pt.y[j]);
     const bool flip = (pt.flip >> j) & 1;
-    const bool up = (value > 0) | (!(value < 0) & ((pt.tie_up >> j) & 1));
+    const bool tie = (pt.tie_up >> j) & 1;
+    const bool up = (value > 0) | ((!(value < 0)) & tie);
     e = flip ? -value : value;
     return up != flip;
   };
   // A triangle's interpolated depth is at most its deepest corner's (plus round-off).
   const double behind = qz - merge_tolerance_mm - depth_slack_mm_;
+  // The triangles are scattered in memory: ask for all of them before testing any, so their
+  // cache misses overlap.
+  for (std::int32_t k = cell_start_[c]; k < cell_start_[c + 1]; ++k)
+    if (!(cell_top_[k] < behind)) __builtin_prefetch(&tris_[cell_tris_[k]]);
   for (std::int32_t k = cell_start_[c]; k < cell_start_[c + 1]; ++k) {
     if (cell_top_[k] < behind) continue;  // wholly behind the origin
     const ProjectedTri& pt = tris_[cell_tris_[k]];

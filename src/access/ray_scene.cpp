@@ -3,6 +3,7 @@
 #include <embree3/rtcore.h>
 
 #include <limits>
+#include <vector>
 
 #include "dhfcast/error.h"
 
@@ -32,8 +33,14 @@ Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3
   return a + ab * (vb * denom) + ac * (vc * denom);
 }
 
+// A triangle's corners side by side: a distance query reads one record, not three scattered
+// vertices.
+struct TriCorners {
+  Vec3 a, b, c;
+};
+
 struct DistanceQuery {
-  const TriMesh* mesh;
+  const TriCorners* tris;
   Vec3 p;
   double best;
   bool any;  // stop at the first triangle closer than the radius
@@ -41,11 +48,8 @@ struct DistanceQuery {
 
 bool shrink_to_triangle(RTCPointQueryFunctionArguments* args) {
   auto* q = static_cast<DistanceQuery*>(args->userPtr);
-  const Tri& tri = q->mesh->triangles[args->primID];
-  const Vec3& v = q->mesh->vertices[tri[0]];
-  const double d =
-      (closest_on_triangle(q->p, v, q->mesh->vertices[tri[1]], q->mesh->vertices[tri[2]]) - q->p)
-          .norm();
+  const TriCorners& t = q->tris[args->primID];
+  const double d = (closest_on_triangle(q->p, t.a, t.b, t.c) - q->p).norm();
   if (d >= q->best) return false;
   q->best = d;
   args->query->radius = q->any ? 0.0f : static_cast<float>(d);
@@ -74,12 +78,14 @@ RTCRay make_ray(const Vec3& origin, const Vec3& dir) {
 struct RayScene::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
-  TriMesh mesh;  // the surface, for exact distances
+  std::vector<TriCorners> tris;  // the surface, for exact distances
 };
 
 RayScene::RayScene(const TriMesh& surface) : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
-  m.mesh = surface;
+  m.tris.reserve(surface.triangles.size());
+  for (const Tri& t : surface.triangles)
+    m.tris.push_back({surface.vertices[t[0]], surface.vertices[t[1]], surface.vertices[t[2]]});
   diagonal_mm_ = bounding_box(surface.vertices).diagonal();
 
   m.device = rtcNewDevice(nullptr);
@@ -122,7 +128,7 @@ bool RayScene::near(const Vec3& p, double radius_mm) const {
 }
 
 double RayScene::point_query(const Vec3& p, double radius_mm, bool any) const {
-  DistanceQuery q{&impl_->mesh, p, radius_mm, any};
+  DistanceQuery q{impl_->tris.data(), p, radius_mm, any};
   RTCPointQuery query;
   query.x = static_cast<float>(p.x());
   query.y = static_cast<float>(p.y());
