@@ -180,10 +180,12 @@ TEST(Molds, SameMoldOnAnyThreadCount) {
       part_of(make_sphere(Vec3(0, 0, 0), 12, 12, 24), Vec3(0.3, 0.4, 1.0)),
       part_of(test::make_box(Vec3(0, 0, 0), Vec3(12, 8, 5)), Vec3(1.0, 0.0, 0.2))};
   const std::vector<Mold> many = build_molds(parts, {});
+  const std::vector<Mold> again = build_molds(parts, {});
   tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
   const std::vector<Mold> single = build_molds(parts, {});
   ASSERT_EQ(many.size(), single.size());
   for (std::size_t i = 0; i < many.size(); ++i) {
+    EXPECT_EQ(many[i].up.vertices, again[i].up.vertices) << "part " << i;
     EXPECT_EQ(many[i].up.vertices, single[i].up.vertices);
     EXPECT_EQ(many[i].up.triangles, single[i].up.triangles);
     EXPECT_EQ(many[i].down.vertices, single[i].down.vertices);

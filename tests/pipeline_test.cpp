@@ -176,9 +176,9 @@ TEST(Pipeline, SameSeedSameOutputOnAnyThreadCount) {
 // release along +-d, do not overlap the part, mould its whole surface (channel mouths counted
 // apart), and list a sprue and keys.
 TEST(Pipeline, MoldsOfARealModelPassTheChecker) {
-  const std::string path = test::cgal_mesh("fandisk.off");
+  const std::string path = test::cgal_mesh("knot1.off");
   if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
-  const TriMesh input = test::load_scaled(path, 100.0);
+  const TriMesh input = test::load_scaled(path, 80.0);
   DecomposeOptions opts = fast_options(4000);
   opts.make_molds = true;
   const Decomposition d = decompose(input, opts);
@@ -188,8 +188,8 @@ TEST(Pipeline, MoldsOfARealModelPassTheChecker) {
     EXPECT_EQ(m.sprues.size(), 1u);
     EXPECT_GE(m.keys.size(), 3u);
   }
-  const std::string dir = test::temp_dir("fandisk_molds");
-  const InputInfo info{"fandisk.off", 0, signed_volume(input), bounding_box(input.vertices),
+  const std::string dir = test::temp_dir("knot_molds");
+  const InputInfo info{"knot1.off", 0, signed_volume(input), bounding_box(input.vertices),
                        false};
   write_output(dir + "/out", decomposition_json(info, opts, d, 0, 0), d, false);
   CheckOptions check;

@@ -1,4 +1,5 @@
 // Small closed meshes and mesh helpers for the mold stage.
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <numbers>
@@ -57,6 +58,30 @@ TriMesh weld_exact(const TriMesh& mesh) {
   }
   for (const Tri& t : mesh.triangles) out.triangles.push_back({remap[t[0]], remap[t[1]], remap[t[2]]});
   return out;
+}
+
+void canonicalize(TriMesh& mesh) {
+  std::vector<std::int32_t> order(mesh.vertices.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<std::int32_t>(i);
+  auto key = [&](std::int32_t v) {
+    const Vec3& p = mesh.vertices[v];
+    return std::array<double, 3>{p.x(), p.y(), p.z()};
+  };
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::int32_t a, std::int32_t b) { return key(a) < key(b); });
+  std::vector<std::int32_t> rank(order.size());
+  std::vector<Vec3> vertices(order.size());
+  for (std::size_t i = 0; i < order.size(); ++i) {
+    rank[order[i]] = static_cast<std::int32_t>(i);
+    vertices[i] = mesh.vertices[order[i]];
+  }
+  for (Tri& t : mesh.triangles) {
+    for (std::int32_t& v : t) v = rank[v];
+    // Rotate (keeping orientation) so the smallest index comes first.
+    while (t[0] > t[1] || t[0] > t[2]) t = {t[1], t[2], t[0]};
+  }
+  std::sort(mesh.triangles.begin(), mesh.triangles.end());
+  mesh.vertices = std::move(vertices);
 }
 
 }  // namespace dhfcast::detail

@@ -7,6 +7,7 @@
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
+#include <cfenv>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -313,12 +314,16 @@ namespace {
 // One try at a mold; `attempt` moves the parting surface's grid by a fraction of a cell, which
 // changes every triangle the booleans make.
 Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
+  // Worker threads may inherit another rounding mode (TBB copies the creating thread's
+  // floating-point settings); constructions must round the same way on every thread.
+  std::fesetround(FE_TONEAREST);
   const std::string name = "part " + std::to_string(part.id);
   Mold mold;
   mold.part = part.id;
   // The cavity is the part exactly as its STL stores it.
   TriMesh cavity = part.mesh;
   round_to_float(cavity);
+  cavity = unweld_nonmanifold(cavity);
   const Vec3 d = part.direction.normalized();
   const double diag = bounding_box(cavity.vertices).diagonal();
   const double hair = 1e-6 * std::max(diag, 1.0);
@@ -461,19 +466,20 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
   // --- 6. halves: block halves minus the cavity and channels; bumps on down, sockets in up ---
   TriMesh up_block = block_half(g, w_top), down_block = block_half(g, w_bottom);
   for (TriMesh* m : {&up_block, &down_block, &channels, &bumps, &sockets}) to_world(*m, frame);
-  const TriMesh hollow = channels.triangles.empty()
-                             ? cavity
-                             : mesh_boolean(cavity, channels, BooleanOp::Union,
-                                            name + ": cavity and channels");
-  TriMesh up_cut = hollow;
-  append_mesh(up_cut, sockets);
-  mold.up = mesh_boolean(up_block, up_cut, BooleanOp::Difference, name + ": up half");
-  mold.down = mesh_boolean(mesh_boolean(down_block, bumps, BooleanOp::Union, name + ": keys"),
-                           hollow, BooleanOp::Difference, name + ": down half");
+  // The cavity is cut last: the other operands are simple closed shapes made here, and only
+  // the part can intersect or touch itself.
+  mold.up = carve(up_block, {{BooleanOp::Difference, &sockets, name + ": sockets"},
+                             {BooleanOp::Difference, &channels, name + ": up half channels"},
+                             {BooleanOp::Difference, &cavity, name + ": up half"}});
+  mold.down = carve(down_block, {{BooleanOp::Union, &bumps, name + ": keys"},
+                                 {BooleanOp::Difference, &channels, name + ": down half channels"},
+                                 {BooleanOp::Difference, &cavity, name + ": down half"}});
 
   // --- 7. what is written is what is checked ---
   for (auto [half, label] : {std::pair{&mold.up, "up"}, std::pair{&mold.down, "down"}}) {
+    canonicalize(*half);  // the clean-up visits triangles in order: make the order the geometry's
     const std::string problem = finish_solid(*half);
+    canonicalize(*half);
     if (!problem.empty())
       throw Error(ErrorCode::BooleanFailed, name + ": " + label + " half " + problem);
     const MeshDiagnostics diag_half = validate_mesh(weld_exact(*half));
@@ -488,7 +494,7 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
 
 Mold build_mold(const Part& part, const MoldOptions& opts) {
   validate_mold_options(opts);
-  constexpr int kAttempts = 3;
+  constexpr int kAttempts = 4;
   for (int attempt = 0;; ++attempt) {
     try {
       return try_mold(part, opts, attempt);

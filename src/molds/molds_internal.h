@@ -53,9 +53,31 @@ std::vector<LineInterval> robust_line_intervals(const LineIndex& index, const Ve
 
 enum class BooleanOp { Union, Difference };
 
+// `mesh` with its vertices (and edges) duplicated where the surface touches itself, so that it
+// is a 2-manifold surface (a part read back from an STL is welded there).
+TriMesh unweld_nonmanifold(const TriMesh& mesh);
+
+// `mesh` with its vertices (and edges) duplicated where the surface touches itself, so that it
+// is a 2-manifold surface (a part read back from an STL is welded there).
+TriMesh unweld_nonmanifold(const TriMesh& mesh);
+
 // a op b for closed, outward, non-self-intersecting meshes (a soup of disjoint closed
-// components is fine). Throws Error{BooleanFailed} naming `what` when CGAL gives no solid.
+// components is fine); b is checked for self-intersections where it meets a. Throws
+// Error{BooleanFailed} naming `what` when b intersects itself or CGAL gives no solid.
 TriMesh mesh_boolean(const TriMesh& a, const TriMesh& b, BooleanOp op, const std::string& what);
+
+// One step of carve(): `op` with `mesh`, named `what` in errors.
+struct CarveStep {
+  BooleanOp op;
+  const TriMesh* mesh;
+  std::string what;
+};
+
+// block op1 mesh1 op2 mesh2 ..., with exact constructions throughout (results of inexact
+// booleans, fed to the next one, can intersect themselves), converted to double at the end.
+// Each step's mesh is checked for self-intersections where it meets the result so far; throws
+// Error{BooleanFailed} naming the step.
+TriMesh carve(const TriMesh& block, const std::vector<CarveStep>& steps);
 
 // Rounds every vertex to float (as an STL stores it), then removes the degenerate faces that
 // rounding made and unwelds vertices where the solid touches itself. Returns "" when the result
@@ -93,11 +115,16 @@ std::vector<std::int32_t> trapped_maxima(const TriMesh& part, const FaceSplit& s
 TriMesh make_frustum(const Vec3& base_centre, const Vec3& axis, double base_radius,
                      double top_radius, double height, int segments);
 
-// Appends b's triangles to a (disjoint closed components stay a valid input of mesh_boolean).
+// Appends b's triangles to a (disjoint closed components stay a valid operand of carve()).
 void append_mesh(TriMesh& a, const TriMesh& b);
 
 // Reverses every triangle when the signed volume is negative.
 void orient_outward(TriMesh& mesh);
+
+// Orders vertices by coordinates and triangles by vertices (orientation kept): the same surface
+// gives the same arrays whatever order a boolean produced it in. Vertices with equal
+// coordinates keep their relative order.
+void canonicalize(TriMesh& mesh);
 
 // Welds vertices with identical coordinates (what reading an STL does).
 TriMesh weld_exact(const TriMesh& mesh);

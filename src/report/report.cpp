@@ -167,8 +167,9 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                       {"accessibility", d.timings.accessibility},
                       {"segmentation", d.timings.segmentation},
                       {"parts", d.timings.parts},
-                      {"molds", d.timings.molds},
+
                       {"total", total_s}};
+    if (opts.make_molds) j["timings_s"]["molds"] = d.timings.molds;
   }
   return j.dump(2) + "\n";
 }
