@@ -28,18 +28,22 @@ using Mesh = CGAL::Surface_mesh<K::Point_3>;
 namespace PMP = CGAL::Polygon_mesh_processing;
 
 // nullopt when the triangles do not form an oriented 2-manifold surface.
-std::optional<Mesh> to_cgal(const TriMesh& m) {
-  Mesh out;
-  out.reserve(static_cast<Mesh::size_type>(m.vertices.size()),
-              static_cast<Mesh::size_type>(3 * m.triangles.size() / 2),
-              static_cast<Mesh::size_type>(m.triangles.size()));
-  for (const Vec3& p : m.vertices) out.add_vertex(K::Point_3(p.x(), p.y(), p.z()));
+template <typename M>
+std::optional<M> to_surface_mesh(const TriMesh& m) {
+  using Point = typename M::Point;
+  M out;
+  out.reserve(static_cast<typename M::size_type>(m.vertices.size()),
+              static_cast<typename M::size_type>(3 * m.triangles.size() / 2),
+              static_cast<typename M::size_type>(m.triangles.size()));
+  for (const Vec3& p : m.vertices) out.add_vertex(Point(p.x(), p.y(), p.z()));
   for (const Tri& t : m.triangles)
-    if (out.add_face(Mesh::Vertex_index(t[0]), Mesh::Vertex_index(t[1]),
-                     Mesh::Vertex_index(t[2])) == Mesh::null_face())
+    if (out.add_face(typename M::Vertex_index(t[0]), typename M::Vertex_index(t[1]),
+                     typename M::Vertex_index(t[2])) == M::null_face())
       return std::nullopt;
   return out;
 }
+
+std::optional<Mesh> to_cgal(const TriMesh& m) { return to_surface_mesh<Mesh>(m); }
 
 TriMesh from_cgal(const Mesh& m) {
   TriMesh out;
@@ -178,13 +182,9 @@ using EK = CGAL::Exact_predicates_exact_constructions_kernel;
 using ExactMesh = CGAL::Surface_mesh<EK::Point_3>;
 
 ExactMesh to_exact(const TriMesh& m, const std::string& what) {
-  ExactMesh out;
-  for (const Vec3& p : m.vertices) out.add_vertex(EK::Point_3(p.x(), p.y(), p.z()));
-  for (const Tri& t : m.triangles)
-    if (out.add_face(ExactMesh::Vertex_index(t[0]), ExactMesh::Vertex_index(t[1]),
-                     ExactMesh::Vertex_index(t[2])) == ExactMesh::null_face())
-      throw Error(ErrorCode::BooleanFailed, what + ": an operand is not a manifold surface");
-  return out;
+  std::optional<ExactMesh> out = to_surface_mesh<ExactMesh>(m);
+  if (!out) throw Error(ErrorCode::BooleanFailed, what + ": an operand is not a manifold surface");
+  return std::move(*out);
 }
 
 TriMesh from_exact(const ExactMesh& m) {
