@@ -76,6 +76,18 @@ struct CliOptions {
   DecomposeOptions decompose;
 };
 
+// Warns about each part whose mold could not be built; true when all were.
+bool report_molds(const std::vector<Mold>& molds) {
+  bool all = true;
+  for (const Mold& m : molds)
+    if (!m.error.empty()) {
+      std::fprintf(stderr, "dhfcast: warning: no mold for part %d: %s\n", m.part,
+                   m.error.c_str());
+      all = false;
+    }
+  return all;
+}
+
 int run_decompose(const CliOptions& cli) {
   const auto t_start = Clock::now();
   std::unique_ptr<oneapi::tbb::global_control> threads;
@@ -114,6 +126,7 @@ int run_decompose(const CliOptions& cli) {
 
   if (!d.assembly.found)
     std::fprintf(stderr, "dhfcast: warning: %s\n", d.assembly.message.c_str());
+  report_molds(d.molds);
   for (const InaccessibleRegion& r : d.inaccessible_regions)
     std::fprintf(stderr,
                  "dhfcast: note: %d tets (%.1f mm3) are accessible from no direction; that "
@@ -132,10 +145,26 @@ int run_decompose(const CliOptions& cli) {
                  d.assembly.found ? "" : " (not collision-free)");
     std::fprintf(stderr,
                  "  time: load %.1f s, tetrahedralize %.1f s, accessibility %.1f s, "
-                 "segmentation %.1f s, parts %.1f s, total %.1f s\n",
+                 "segmentation %.1f s, parts %.1f s, molds %.1f s, total %.1f s\n",
                  load_s, d.timings.tetrahedralize, d.timings.accessibility,
-                 d.timings.segmentation, d.timings.parts, total_s);
+                 d.timings.segmentation, d.timings.parts, d.timings.molds, total_s);
   }
+  return kOk;
+}
+
+int run_molds(const std::string& outdir, const MoldOptions& opts, int threads_wanted,
+              bool quiet) {
+  std::unique_ptr<oneapi::tbb::global_control> threads;
+  if (threads_wanted > 0)
+    threads = std::make_unique<oneapi::tbb::global_control>(
+        oneapi::tbb::global_control::max_allowed_parallelism, threads_wanted);
+  const auto t0 = Clock::now();
+  const std::vector<Mold> molds = rebuild_molds(outdir, opts);
+  report_molds(molds);
+  if (!quiet)
+    std::fprintf(stderr, "dhfcast: molds of %zu parts written to %s/molds in %.1f s\n",
+                 molds.size(), outdir.c_str(),
+                 std::chrono::duration<double>(Clock::now() - t0).count());
   return kOk;
 }
 
@@ -180,6 +209,20 @@ int main(int argc, char** argv) {
   dec->add_option("--smoothing", o.smoothing.iterations,
                   "Interface smoothing steps (0: keep the tet faces)")
       ->capture_default_str();
+  bool no_molds = false;
+  dec->add_flag("--no-molds", no_molds, "Do not build the mold halves");
+  auto add_mold_options = [](CLI::App* cmd, MoldOptions& m) {
+    cmd->add_option("--wall", m.wall_mm, "Mold wall thickness around the cavity, mm")
+        ->capture_default_str();
+    cmd->add_option("--sprue-diameter", m.sprue_diameter_mm, "Pour sprue diameter, mm")
+        ->capture_default_str();
+    cmd->add_option("--vent-diameter", m.vent_diameter_mm, "Air vent diameter, mm")
+        ->capture_default_str();
+    cmd->add_option("--key-clearance", m.key_clearance_mm,
+                    "Registration key clearance per side, mm")
+        ->capture_default_str();
+  };
+  add_mold_options(dec, o.molds);
   dec->add_option("--scale", cli.scale, "Multiply the input's coordinates by this")
       ->capture_default_str();
   dec->add_option("--units", cli.units, "Units of the input file")
@@ -189,6 +232,18 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   dec->add_flag("-q,--quiet", cli.quiet, "Print only errors and warnings");
   dec->add_flag("-f,--force", cli.force, "Replace OUTDIR if it exists");
+
+  MoldOptions mold_opts;
+  std::string mold_outdir;
+  int mold_threads = 0;
+  bool mold_quiet = false;
+  CLI::App* mld = app.add_subcommand(
+      "molds", "Build the mold halves of an existing OUTDIR again, with other mold options");
+  mld->add_option("outdir", mold_outdir, "Folder written by dhfcast decompose")->required();
+  add_mold_options(mld, mold_opts);
+  mld->add_option("--threads", mold_threads, "Worker threads (0: all cores)")
+      ->check(CLI::NonNegativeNumber);
+  mld->add_flag("-q,--quiet", mold_quiet, "Print only errors and warnings");
 
   CheckOptions check_opts;
   bool check_json = false;
@@ -237,8 +292,10 @@ int main(int argc, char** argv) {
   try {
     if (dec->parsed()) {
       o.tets.seed = o.segment.seed;
+      o.make_molds = !no_molds;
       return run_decompose(cli);
     }
+    if (mld->parsed()) return run_molds(mold_outdir, mold_opts, mold_threads, mold_quiet);
     if (chk->parsed()) {
       std::unique_ptr<oneapi::tbb::global_control> threads;
       if (check_threads > 0)

@@ -9,6 +9,7 @@ packages=(
   libmaxflow-dev libeigen3-dev libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libcgal-demo  # CGAL's data set: real closed meshes for the example and the default tests
+  admesh prusa-slicer  # tests/print_check.sh: mold STLs are sound and slice
 )
 
 missing=()

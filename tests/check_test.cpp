@@ -100,7 +100,14 @@ Folder write_folder(const std::string& tag, const TriMesh& input,
       std::snprintf(down, sizeof down, "molds/part_%03zu_down.stl", i);
       write_stl((out / up).string(), parts[i].molds[0]);
       write_stl((out / down).string(), parts[i].molds[1]);
-      jp["molds"] = {{"up", up}, {"down", down}};
+      // A sprue far from the part (it serves none of its surface) and three keys.
+      jp["molds"] = {{"up", up},
+                     {"down", down},
+                     {"sprues", {{{"mouth", {1e3, 1e3, 1e3}}, {"exit", {1e3, 1e3, 1e3 + 1}},
+                                  {"diameter_mm", 1.0}}}},
+                     {"vents", nlohmann::json::array()},
+                     {"keys", {nlohmann::json::object(), nlohmann::json::object(),
+                               nlohmann::json::object()}}};
     }
     j["parts"].push_back(jp);
   }
@@ -363,6 +370,21 @@ TEST(Check, MoldHalfWithAnUndercutFailsMolds) {
       run(write_folder("undercut", part, {{part, Vec3::UnitZ(), {bad_up, bad_down}}}, {0}));
   expect_failures(bad, {"molds"});
   EXPECT_GT(figure(item(bad, "molds"), "blocked_samples"), 0.0);
+
+  // Without keys, or with an error instead of halves, the molds check fails (the contract
+  // holds).
+  const CheckReport no_keys = run(write_folder(
+      "nokeys", part, {{part, Vec3::UnitZ(), {up, down}}}, {0},
+      [](nlohmann::json& j) { j["parts"][0]["molds"]["keys"] = nlohmann::json::array(); }));
+  expect_failures(no_keys, {"molds"});
+  EXPECT_NE(item(no_keys, "molds").summary.find("key"), std::string::npos);
+  const CheckReport failed = run(write_folder(
+      "moldfailed", part, {{part, Vec3::UnitZ(), {up, down}}}, {0},
+      [](nlohmann::json& j) { j["parts"][0]["molds"] = {{"error", "part 0: no luck"}}; }));
+  expect_failures(failed, {"molds"});
+  EXPECT_NE(item(failed, "molds").summary.find("no luck"), std::string::npos);
+
+  EXPECT_EQ(figure(item(good, "molds"), "max_channel_served_fraction"), 0.0);
   EXPECT_NE(item(bad, "molds").summary.find("up half"), std::string::npos)
       << item(bad, "molds").summary;
 

@@ -140,6 +140,42 @@ TEST(Cli, CubeGivesOnePartAndTheContract) {
   EXPECT_FALSE(fs::exists(dir + "/out/parts/part_001.stl"));
   const TriMesh part = load_solid(dir + "/out/parts/part_000.stl").mesh;
   EXPECT_NEAR(signed_volume(part), 1000.0, 10.0);
+  // Molds are built by default, and the checker accepts them.
+  EXPECT_TRUE(fs::exists(dir + "/out/molds/part_000_up.stl"));
+  EXPECT_TRUE(fs::exists(dir + "/out/molds/part_000_down.stl"));
+  EXPECT_EQ(run("check " + dir + "/out").exit_code, 0);
+}
+
+TEST(Cli, NoMoldsSkipsThemAndMoldsBuildsThemLater) {
+  const std::string dir = test::temp_dir("cube_molds");
+  write_text(dir + "/cube.obj", cube_obj());
+  RunResult r = run("decompose " + dir + "/cube.obj -o " + dir +
+                    "/out --tets 2000 --directions 64 --restarts 2 --quiet --no-molds");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/out/molds"));
+  std::stringstream before;
+  before << std::ifstream(dir + "/out/decomposition.json").rdbuf();
+  EXPECT_EQ(before.str().find("\"molds\""), std::string::npos);
+
+  r = run("molds " + dir + "/out --wall 8 --sprue-diameter 5 --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(r.err.empty()) << r.err;
+  EXPECT_TRUE(fs::exists(dir + "/out/molds/part_000_up.stl"));
+  std::stringstream after;
+  after << std::ifstream(dir + "/out/decomposition.json").rdbuf();
+  EXPECT_NE(after.str().find("\"wall_mm\": 8.0"), std::string::npos) << after.str();
+  EXPECT_NE(after.str().find("\"sprues\""), std::string::npos);
+  EXPECT_EQ(run("check " + dir + "/out").exit_code, 0);
+  // A thicker wall gives a larger block.
+  const Box3 thick = bounding_box(read_mesh(dir + "/out/molds/part_000_up.stl").vertices);
+  ASSERT_EQ(run("molds " + dir + "/out --wall 4 --quiet").exit_code, 0);
+  const Box3 thin = bounding_box(read_mesh(dir + "/out/molds/part_000_up.stl").vertices);
+  EXPECT_GT(thick.diagonal(), thin.diagonal() + 10.0);
+
+  r = run("molds " + dir + "/out --wall 2 --sprue-diameter 6");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--sprue-diameter"), std::string::npos) << r.err;
+  EXPECT_EQ(run("molds " + dir + "/nowhere --quiet").exit_code, 4);
 }
 
 }  // namespace

@@ -20,6 +20,7 @@ DecomposeOptions fast_options(std::int32_t tets = 8000) {
   o.tets.target_tets = tets;
   o.directions = 128;
   o.segment.restarts = 4;
+  o.make_molds = false;  // the mold stage has its own tests (molds_test, Pipeline.Molds*)
   return o;
 }
 
@@ -169,6 +170,38 @@ TEST(Pipeline, SameSeedSameOutputOnAnyThreadCount) {
   tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
   const std::string single = decomposition_json(info, opts, decompose(input, opts), 0, 0, false);
   EXPECT_EQ(many, single);
+}
+
+// Every part gets a mold that the independent checker accepts: halves closed and manifold, they
+// release along +-d, do not overlap the part, mould its whole surface (channel mouths counted
+// apart), and list a sprue and keys.
+TEST(Pipeline, MoldsOfARealModelPassTheChecker) {
+  const std::string path = test::cgal_mesh("knot1.off");
+  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
+  const TriMesh input = test::load_scaled(path, 80.0);
+  DecomposeOptions opts = fast_options(4000);
+  opts.make_molds = true;
+  const Decomposition d = decompose(input, opts);
+  ASSERT_EQ(d.molds.size(), d.parts.size());
+  for (const Mold& m : d.molds) {
+    EXPECT_EQ(m.error, "") << "part " << m.part;
+    EXPECT_EQ(m.sprues.size(), 1u);
+    EXPECT_GE(m.keys.size(), 3u);
+  }
+  const std::string dir = test::temp_dir("knot_molds");
+  const InputInfo info{"knot1.off", 0, signed_volume(input), bounding_box(input.vertices),
+                       false};
+  write_output(dir + "/out", decomposition_json(info, opts, d, 0, 0), d, false);
+  CheckOptions check;
+  check.outdir = dir + "/out";
+  const CheckReport report = check_output(check);
+  for (const CheckItem& item : report.items) {
+    SCOPED_TRACE(item.name + ": " + item.summary);
+    if (item.name == "contract" || item.name == "solids" || item.name == "molds") {
+      EXPECT_TRUE(item.passed);
+      EXPECT_FALSE(item.skipped);
+    }
+  }
 }
 
 // The extended suite: the paper's models and CAD-like parts, when their folder is present.

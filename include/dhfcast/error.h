@@ -12,6 +12,7 @@ enum class ErrorCode {
   InvalidOptions,            // an option is out of range
   Io,                        // a file could not be read or written
   TetrahedralizationFailed,  // the volume mesher gave no usable mesh
+  BooleanFailed,             // a mesh boolean (molds) gave no valid solid
   Internal,                  // a broken invariant: a bug
 };
 

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "dhfcast/access.h"
+#include "dhfcast/molds.h"
 #include "dhfcast/parts.h"
 #include "dhfcast/segment.h"
 #include "dhfcast/tets.h"
@@ -21,11 +22,14 @@ struct DecomposeOptions {
   AccessibilityOptions access;
   SegmentOptions segment;
   SmoothingOptions smoothing;
+  bool make_molds = true;  // build each part's two-piece mold (molds.epsilon_mm is taken from
+                           // access.epsilon_mm)
+  MoldOptions molds;
 };
 
 // Wall-clock seconds per stage.
 struct StageTimes {
-  double tetrahedralize = 0, accessibility = 0, segmentation = 0, parts = 0;
+  double tetrahedralize = 0, accessibility = 0, segmentation = 0, parts = 0, molds = 0;
 };
 
 // A tet region that was feasible for no direction and was decomposed again on its own.
@@ -50,6 +54,7 @@ struct Decomposition {
   std::vector<InterfaceSmoothness> raw_smoothness, smoothness;
   InterfaceSmoothness outer_smoothness;
   AssemblyPlan assembly;
+  std::vector<Mold> molds;  // one per part, in part order; empty when !make_molds
   double assembly_tolerance_mm = 0.0;  // penetration depth below which parts do not block
   StageTimes timings;
 };

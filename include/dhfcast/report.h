@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "dhfcast/pipeline.h"
 #include "dhfcast/types.h"
@@ -31,6 +32,14 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
 // Throws Error{Io}.
 void write_output(const std::string& outdir, const std::string& json, const Decomposition& d,
                   bool replace);
+
+// Builds the molds of an existing output folder again with `opts` (epsilon_mm is taken from its
+// decomposition.json): replaces OUTDIR/molds/ and the molds entries, parameters.molds and
+// timings_s.molds of decomposition.json. The new files are written beside the old ones and
+// swapped in at the end. Returns the molds (a part whose mold failed has Mold::error).
+// Throws Error{Io} when the folder cannot be read or written, Error{InvalidInput} when it is not
+// a dhfcast decomposition, Error{InvalidOptions} for bad options.
+std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts);
 
 // Throws Error{Io} when `outdir` cannot be written later: it exists and `replace` is false, or
 // its parent folder does not exist. Lets the CLI fail before the long computation.

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "check_internal.h"
 #include "sampling.h"
@@ -66,6 +67,7 @@ std::vector<SurfaceSample> inner_samples(const TriMesh& mesh, std::int64_t count
 struct SweepTally {
   std::int64_t blocked = 0, unresolved = 0;
   double inside_mm = 0.0;  // longest path inside, over blocked samples
+  Vec3 first_blocked = Vec3::Zero();  // the first blocked sample, when blocked > 0
 };
 
 SweepTally sweep_all(const std::vector<SurfaceSample>& samples, const Vec3& dir,
@@ -78,9 +80,11 @@ SweepTally sweep_all(const std::vector<SurfaceSample>& samples, const Vec3& dir,
       r[i] = sweep(solid, samples[i].point, dir, eps);
   });
   SweepTally t;
-  for (const Sweep& s : r) {
+  for (std::size_t i = 0; i < r.size(); ++i) {
+    const Sweep& s = r[i];
     t.unresolved += !s.resolved;
     if (s.blocked) {
+      if (t.blocked == 0) t.first_blocked = samples[i].point;
       ++t.blocked;
       t.inside_mm = std::max(t.inside_mm, s.inside_mm);
     }
@@ -204,12 +208,18 @@ CheckItem check_molds(const CheckContext& c) {
   CheckItem item;
   item.name = "molds";
   std::int64_t with_molds = 0, blocked = 0, unresolved = 0;
-  double inside_mm = 0.0, worst_overlap = 0.0, worst_cover = 1.0;
+  double inside_mm = 0.0, worst_overlap = 0.0, worst_cover = 1.0, most_served = 0.0;
+  std::int32_t min_sprues = std::numeric_limits<std::int32_t>::max(), min_keys = min_sprues;
+  std::int64_t vents = 0;
   std::string first;
   for (std::size_t i = 0; i < c.parts.size(); ++i) {
     const CheckedPart& part = c.parts[i];
     if (!part.molds_listed) continue;
     ++with_molds;
+    if (!part.mold_error.empty()) {
+      if (first.empty()) first = part_name(part) + " has no mold: " + part.mold_error;
+      continue;
+    }
     if (!part.mold_up || !part.mold_down) {
       if (first.empty())
         first = part_name(part) + ": its mold halves could not be read (see solids)";
@@ -230,9 +240,9 @@ CheckItem check_molds(const CheckContext& c) {
       if (t.blocked > o.max_blocked_samples && problem.empty())
         problem = format(
             "the %s half runs into the part when pulled along %sd (%lld samples, up "
-            "to %.3g mm inside)",
+            "to %.3g mm inside; first at %.2f %.2f %.2f)",
             h == 0 ? "up" : "down", h == 0 ? "+" : "-", static_cast<long long>(t.blocked),
-            t.inside_mm);
+            t.inside_mm, t.first_blocked.x(), t.first_blocked.y(), t.first_blocked.z());
     }
 
     // --- overlap: points of the block inside two of part, up, down ---
@@ -257,21 +267,47 @@ CheckItem check_molds(const CheckContext& c) {
       problem =
           format("the halves and the part overlap (%.3f%% of the part's volume)", 100 * overlap);
 
-    // --- cover: the part's surface is moulded by the halves ---
+    // --- cover: the part's surface is moulded by the halves, or opens into a listed channel
+    // (a sample within the channel's radius of its axis: the sprue or vent stub is cut off
+    // after casting), counted apart ---
     const std::vector<SurfaceSample> surface =
         sample_surface(part.solid.mesh(), o.mold_samples, random);
-    std::vector<char> covered(surface.size(), 0);
+    std::vector<char> state(surface.size(), 0);  // 1 covered, 2 served by a channel
     const double near_mm = 0.25 * o.epsilon_mm;
     tbb::parallel_for(std::size_t{0}, surface.size(), [&](std::size_t k) {
-      covered[k] = halves[0]->distance(surface[k].point) <= near_mm ||
-                   halves[1]->distance(surface[k].point) <= near_mm;
+      const Vec3& p = surface[k].point;
+      if (halves[0]->distance(p) <= near_mm || halves[1]->distance(p) <= near_mm) {
+        state[k] = 1;
+        return;
+      }
+      for (const CheckedPart::Channel& ch : part.channels) {
+        const Vec3 axis = ch.exit - ch.mouth;
+        const double t = std::clamp((p - ch.mouth).dot(axis) / axis.squaredNorm(), 0.0, 1.0);
+        if ((ch.mouth + t * axis - p).norm() <= 0.5 * ch.diameter_mm + near_mm) state[k] = 2;
+      }
     });
-    const double cover =
-        surface.empty() ? 0.0 : double(std::ranges::count(covered, 1)) / double(surface.size());
-    worst_cover = std::min(worst_cover, cover);
-    if (cover < o.min_mold_surface_coverage && problem.empty())
-      problem = format("only %.2f%% of the part's surface is within %.3g mm of a half", 100 * cover,
-                       near_mm);
+    const double n_surface = std::max<double>(1.0, double(surface.size()));
+    const double cover = double(std::ranges::count(state, 1)) / n_surface;
+    const double served = double(std::ranges::count(state, 2)) / n_surface;
+    worst_cover = std::min(worst_cover, cover + served);
+    most_served = std::max(most_served, served);
+    if (cover + served < o.min_mold_surface_coverage && problem.empty()) {
+      const auto bare = std::ranges::find(state, 0) - state.begin();
+      const Vec3& at = surface[bare].point;
+      problem = format(
+          "only %.2f%% of the part's surface is within %.3g mm of a half (%.2f%% more opens "
+          "into a channel; first bare sample at %.2f %.2f %.2f)",
+          100 * cover, near_mm, 100 * served, at.x(), at.y(), at.z());
+    }
+
+    // --- fittings: a sprue to pour through, keys to close the mold in register ---
+    min_sprues = std::min(min_sprues, part.sprues);
+    min_keys = std::min(min_keys, part.keys);
+    vents += part.vents;
+    if ((part.sprues < 1 || part.keys < 3) && problem.empty())
+      problem = format("the mold lists %d sprue%s and %d key%s (at least 1 and 3 needed)",
+                       part.sprues, part.sprues == 1 ? "" : "s", part.keys,
+                       part.keys == 1 ? "" : "s");
 
     if (!problem.empty() && first.empty()) first = part_name(part) + ": " + problem;
   }
@@ -286,13 +322,19 @@ CheckItem check_molds(const CheckContext& c) {
                   {"max_inside_mm", inside_mm},
                   {"max_overlap_fraction", worst_overlap},
                   {"min_surface_coverage", worst_cover},
+                  {"max_channel_served_fraction", most_served},
+                  {"min_sprues", min_sprues == std::numeric_limits<std::int32_t>::max() ? 0.0 : double(min_sprues)},
+                  {"min_keys", min_keys == std::numeric_limits<std::int32_t>::max() ? 0.0 : double(min_keys)},
+                  {"vents", double(vents)},
                   {"unresolved_samples", double(unresolved)}};
   item.summary = item.passed
                      ? format(
                            "%lld part%s: halves release along +-d, overlap at most %.3f%%, surface "
-                           "covered at least %.2f%%",
+                           "covered at least %.2f%% (channels at most %.2f%%), sprues, %lld vents, "
+                           ">= %d keys",
                            static_cast<long long>(with_molds), with_molds == 1 ? "" : "s",
-                           100 * worst_overlap, 100 * worst_cover)
+                           100 * worst_overlap, 100 * worst_cover, 100 * most_served,
+                           static_cast<long long>(vents), min_keys)
                      : first;
   return item;
 }

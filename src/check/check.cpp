@@ -73,6 +73,9 @@ struct PartEntry {
   std::optional<Vec3> direction;
   double volume_mm3 = std::numeric_limits<double>::quiet_NaN();
   std::string mold_up, mold_down;  // both empty when the part lists no molds
+  std::string mold_error;          // "molds": {"error": ...}
+  std::vector<detail::CheckedPart::Channel> channels;
+  std::int32_t sprues = 0, vents = 0, keys = 0;
 };
 
 struct FolderContents {
@@ -179,14 +182,43 @@ FolderContents read_contents(const fs::path& outdir, const std::string& text) {
       problem(where + " has no volume_mm3");
     if (jp.contains("molds")) {
       const json& m = jp["molds"];
-      if (m.is_object() && m.contains("up") && m["up"].is_string() && m.contains("down") &&
-          m["down"].is_string()) {
+      if (m.is_object() && m.contains("error") && m["error"].is_string()) {
+        p.mold_error = m["error"].get<std::string>();
+        if (p.mold_error.empty()) problem(where + " molds error is empty");
+      } else if (m.is_object() && m.contains("up") && m["up"].is_string() &&
+                 m.contains("down") && m["down"].is_string()) {
         p.mold_up = m["up"].get<std::string>();
         p.mold_down = m["down"].get<std::string>();
         file_exists(p.mold_up, where + " mold");
         file_exists(p.mold_down, where + " mold");
+        for (const char* kind : {"sprues", "vents"}) {
+          if (!m.contains(kind)) continue;
+          if (!m[kind].is_array()) {
+            problem(where + " molds." + kind + " is not an array");
+            continue;
+          }
+          for (const json& c : m[kind]) {
+            const std::optional<Vec3> mouth = c.is_object() && c.contains("mouth")
+                                                  ? vec3(c["mouth"]) : std::nullopt;
+            const std::optional<Vec3> exit = c.is_object() && c.contains("exit")
+                                                 ? vec3(c["exit"]) : std::nullopt;
+            if (!mouth || !exit || !c.contains("diameter_mm") ||
+                !c["diameter_mm"].is_number() || !(c["diameter_mm"].get<double>() > 0)) {
+              problem(where + " molds." + kind + " has an entry without mouth, exit and diameter_mm > 0");
+              continue;
+            }
+            p.channels.push_back({*mouth, *exit, c["diameter_mm"].get<double>()});
+            (std::string(kind) == "sprues" ? p.sprues : p.vents)++;
+          }
+        }
+        if (m.contains("keys")) {
+          if (m["keys"].is_array())
+            p.keys = static_cast<std::int32_t>(m["keys"].size());
+          else
+            problem(where + " molds.keys is not an array");
+        }
       } else {
-        problem(where + " molds is not {\"up\": file, \"down\": file}");
+        problem(where + " molds is not {\"up\": file, \"down\": file, ...} or {\"error\": text}");
       }
     }
     if (p.id < 0 || p.mesh.empty() || !p.direction) c.parts_complete = false;
@@ -446,7 +478,12 @@ CheckReport check_output(const CheckOptions& options) {
           .direction = entry.direction->normalized(),
           .volume_mm3 = std::isfinite(entry.volume_mm3) ? entry.volume_mm3 : signed_volume(*m.mesh),
           .solid = std::move(*indices[i]),
-          .molds_listed = !entry.mold_up.empty(),
+          .molds_listed = !entry.mold_up.empty() || !entry.mold_error.empty(),
+          .mold_error = entry.mold_error,
+          .channels = entry.channels,
+          .sprues = entry.sprues,
+          .vents = entry.vents,
+          .keys = entry.keys,
           .mold_up = std::nullopt,
           .mold_down = std::nullopt});
     } else if (indices[i]) {

@@ -19,7 +19,15 @@ struct CheckedPart {
   Vec3 direction = Vec3::UnitZ();  // normalized
   double volume_mm3 = 0.0;         // from decomposition.json (the mesh's when missing there)
   SurfaceIndex solid;
-  bool molds_listed = false;                       // decomposition.json names mold halves
+  bool molds_listed = false;  // decomposition.json names mold halves, or why there are none
+  std::string mold_error;    // its "molds": {"error": ...}
+  // Channels (sprues, then vents) cut into the mold: an axis from mouth to exit, a diameter.
+  struct Channel {
+    Vec3 mouth = Vec3::Zero(), exit = Vec3::Zero();
+    double diameter_mm = 0.0;
+  };
+  std::vector<Channel> channels;
+  std::int32_t sprues = 0, vents = 0, keys = 0;
   std::optional<SurfaceIndex> mold_up, mold_down;  // those that could be read
 };
 

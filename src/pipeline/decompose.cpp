@@ -113,6 +113,7 @@ void validate_options(const DecomposeOptions& o) {
           "--smoothing must be between 0 and 10000");
   require(o.segment.restarts >= 1 && o.segment.restarts <= 1000,
           "--restarts must be between 1 and 1000");
+  if (o.make_molds) validate_mold_options(o.molds);
 }
 
 Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
@@ -203,6 +204,17 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
     if (d.assembly.reversed[p.id]) p.direction = -p.direction;
   report("parts", 1.0);
   d.timings.parts = seconds_since(t0);
+
+  // --- 5. molds ---
+  if (opts.make_molds) {
+    t0 = Clock::now();
+    report("molds", 0.0);
+    MoldOptions molds = opts.molds;
+    molds.epsilon_mm = opts.access.epsilon_mm;
+    d.molds = build_molds(d.parts, molds);
+    report("molds", 1.0);
+    d.timings.molds = seconds_since(t0);
+  }
   return d;
 }
 

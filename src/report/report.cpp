@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -26,8 +27,64 @@ std::string part_file(std::int32_t id) {
   return name;
 }
 
+std::string mold_file(std::int32_t id, const char* half) {
+  char name[40];
+  std::snprintf(name, sizeof name, "molds/part_%03d_%s.stl", id, half);
+  return name;
+}
+
+ordered_json mold_json(const Mold& m) {
+  if (!m.error.empty()) return {{"error", m.error}};
+  auto channels = [](const std::vector<MoldChannel>& list) {
+    ordered_json out = ordered_json::array();
+    for (const MoldChannel& c : list)
+      out.push_back({{"mouth", vec(c.mouth)}, {"exit", vec(c.exit)}, {"diameter_mm", c.diameter_mm}});
+    return out;
+  };
+  ordered_json keys = ordered_json::array();
+  for (const MoldKey& k : m.keys)
+    keys.push_back({{"base", vec(k.base)},
+                    {"base_diameter_mm", k.base_diameter_mm},
+                    {"top_diameter_mm", k.top_diameter_mm},
+                    {"height_mm", k.height_mm}});
+  const FaceSplitStats& s = m.split;
+  return {{"up", mold_file(m.part, "up")},
+          {"down", mold_file(m.part, "down")},
+          {"gravity_up", vec(m.gravity_up)},
+          {"block_mm", vec(m.block_mm)},
+          {"sprues", channels(m.sprues)},
+          {"vents", channels(m.vents)},
+          {"keys", keys},
+          {"face_split", {{"up_triangles", s.up_faces},
+                          {"down_triangles", s.down_faces},
+                          {"up_area_mm2", s.up_area_mm2},
+                          {"down_area_mm2", s.down_area_mm2},
+                          {"both_ways_area_mm2", s.both_area_mm2},
+                          {"neither_way_area_mm2", s.neither_area_mm2},
+                          {"parting_line_mm", s.parting_line_mm}}}};
+}
+
 [[noreturn]] void io_error(const std::string& what, const std::error_code& ec) {
   throw Error(ErrorCode::Io, what + ": " + ec.message());
+}
+
+ordered_json mold_parameters_json(const MoldOptions& o) {
+  return {{"wall_mm", o.wall_mm},
+          {"sprue_diameter_mm", o.sprue_diameter_mm},
+          {"vent_diameter_mm", o.vent_diameter_mm},
+          {"key_clearance_mm", o.key_clearance_mm}};
+}
+
+void write_mold_files(const std::string& dir, const std::vector<Mold>& molds) {
+  if (molds.empty()) return;
+  std::error_code ec;
+  fs::create_directories(fs::path(dir) / "molds", ec);
+  if (ec) io_error("cannot create " + (fs::path(dir) / "molds").string(), ec);
+  for (const Mold& m : molds) {
+    if (!m.error.empty()) continue;
+    write_stl((fs::path(dir) / mold_file(m.part, "up")).string(), m.up);
+    write_stl((fs::path(dir) / mold_file(m.part, "down")).string(), m.down);
+  }
 }
 
 }  // namespace
@@ -54,6 +111,7 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                      {"seed", opts.segment.seed},
                      {"target_tets", opts.tets.target_tets},
                      {"facet_distance_mm", opts.tets.facet_distance_mm}};
+  if (opts.make_molds) j["parameters"]["molds"] = mold_parameters_json(opts.molds);
   j["tetrahedra"] = d.tets.tets.size();
   j["tet_volume_mm3"] = total_volume(d.tets);
   j["tet_boundary_tolerance_mm"] = d.tets.boundary_tolerance_mm;
@@ -67,6 +125,7 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                        {"tets", p.tets.size()},
                        {"region", p.region},
                        {"blocked_by", d.assembly.blocks.at(p.id)}};
+    if (static_cast<std::size_t>(p.id) < d.molds.size()) jp["molds"] = mold_json(d.molds[p.id]);
     parts.push_back(jp);
   }
   j["parts"] = parts;
@@ -108,7 +167,9 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                       {"accessibility", d.timings.accessibility},
                       {"segmentation", d.timings.segmentation},
                       {"parts", d.timings.parts},
+
                       {"total", total_s}};
+    if (opts.make_molds) j["timings_s"]["molds"] = d.timings.molds;
   }
   return j.dump(2) + "\n";
 }
@@ -136,6 +197,7 @@ void write_output(const std::string& outdir, const std::string& json, const Deco
     fs::create_directories(tmp / "parts", ec);
     if (ec) io_error("cannot create " + tmp.string(), ec);
     for (const Part& p : d.parts) write_stl((tmp / part_file(p.id)).string(), p.mesh);
+    write_mold_files(tmp.string(), d.molds);
     std::ofstream f(tmp / "decomposition.json", std::ios::binary);
     f << json;
     f.close();
@@ -158,6 +220,87 @@ void write_output(const std::string& outdir, const std::string& json, const Deco
     fs::remove_all(tmp, ec);
     throw;
   }
+}
+
+}  // namespace dhfcast
+
+namespace dhfcast {
+
+std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts) {
+  validate_mold_options(opts);
+  const fs::path out = fs::absolute(outdir).lexically_normal();
+  const fs::path json_path = out / "decomposition.json";
+  std::ifstream in(json_path, std::ios::binary);
+  if (!in) throw Error(ErrorCode::Io, "cannot read " + json_path.string());
+  ordered_json j;
+  try {
+    j = ordered_json::parse(in);
+  } catch (const std::exception& e) {
+    throw Error(ErrorCode::InvalidInput, json_path.string() + ": not valid JSON");
+  }
+  if (!j.is_object() || j.value("format", "") != "dhfcast-decomposition" ||
+      !j.contains("parts") || !j["parts"].is_array())
+    throw Error(ErrorCode::InvalidInput,
+                json_path.string() + ": not a dhfcast decomposition (format, parts)");
+  if (j["parameters"].is_object() && j["parameters"].contains("epsilon_mm"))
+    opts.epsilon_mm = j["parameters"]["epsilon_mm"].get<double>();
+
+  std::vector<Part> parts;
+  for (const auto& jp : j["parts"]) {
+    Part p;
+    try {
+      p.id = jp.at("id").get<std::int32_t>();
+      const auto& d = jp.at("direction");
+      p.direction = Vec3(d.at(0).get<double>(), d.at(1).get<double>(), d.at(2).get<double>());
+      p.mesh = read_mesh((out / jp.at("mesh").get<std::string>()).string());
+    } catch (const nlohmann::json::exception&) {
+      throw Error(ErrorCode::InvalidInput,
+                  json_path.string() + ": a part lacks its id, direction or mesh");
+    }
+    if (p.id != static_cast<std::int32_t>(parts.size()) || !(p.direction.norm() > 0))
+      throw Error(ErrorCode::InvalidInput,
+                  json_path.string() + ": part ids are not 0..n-1 or a direction is zero");
+    p.direction.normalize();
+    p.volume_mm3 = signed_volume(p.mesh);
+    parts.push_back(std::move(p));
+  }
+
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::vector<Mold> molds = build_molds(parts, opts);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  for (std::size_t i = 0; i < parts.size(); ++i) j["parts"][i]["molds"] = mold_json(molds[i]);
+  j["parameters"]["molds"] = mold_parameters_json(opts);
+  if (j.contains("timings_s") && j["timings_s"].is_object()) j["timings_s"]["molds"] = seconds;
+
+  // New files beside the old ones, then swapped in: a failure leaves the folder as it was.
+  const std::string pid = std::to_string(::getpid());
+  const fs::path tmp = out / (".molds.tmp-" + pid);
+  std::error_code ec;
+  fs::remove_all(tmp, ec);
+  try {
+    write_mold_files(tmp.string(), molds);
+    fs::create_directories(tmp / "molds", ec);
+    std::ofstream f(tmp / "decomposition.json", std::ios::binary);
+    f << j.dump(2) << "\n";
+    f.close();
+    if (!f) throw Error(ErrorCode::Io, "cannot write " + (tmp / "decomposition.json").string());
+    const fs::path old = out / (".molds.old-" + pid);
+    fs::remove_all(old, ec);
+    if (fs::exists(out / "molds")) fs::rename(out / "molds", old, ec);
+    if (ec) io_error("cannot replace " + (out / "molds").string(), ec);
+    fs::rename(tmp / "molds", out / "molds", ec);
+    if (ec) io_error("cannot create " + (out / "molds").string(), ec);
+    fs::rename(tmp / "decomposition.json", json_path, ec);
+    if (ec) io_error("cannot replace " + json_path.string(), ec);
+    fs::remove_all(old, ec);
+    fs::remove_all(tmp, ec);
+  } catch (...) {
+    fs::remove_all(tmp, ec);
+    throw;
+  }
+  return molds;
 }
 
 }  // namespace dhfcast

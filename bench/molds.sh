@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Builds the molds of the extended models and checks them for printing: for each model,
+# `dhfcast decompose` (molds included), `dhfcast check`, then tests/print_check.sh (admesh on
+# every mold STL, PrusaSlicer on one half). One line per model: parts, molds built, mold seconds,
+# the molds check's verdict, print_check's counts.
+#
+#   bench/molds.sh [--models "bunny fandisk ..."] [--build DIR] [--tets N]
+#
+# Models are read from $DHFCAST_MODELS_DIR (default: ../shared/models beside the repository).
+set -uo pipefail
+here="$(cd "$(dirname "$0")/.." && pwd)"
+build="$here/build"
+models_dir="${DHFCAST_MODELS_DIR:-$here/../shared/models}"
+models="bunny armadillo elephant fertility duck bimba doubletorus dragonstand fandisk rockerarm pinion mastercylinder joint wrench teacup vase"
+tets=""
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --models) models="$2"; shift 2 ;;
+    --build) build="$2"; shift 2 ;;
+    --tets) tets="--tets $2"; shift 2 ;;
+    *) echo "usage: bench/molds.sh [--models LIST] [--build DIR] [--tets N]" >&2; exit 2 ;;
+  esac
+done
+[ -d "$models_dir" ] || { echo "bench: no models folder at $models_dir (set DHFCAST_MODELS_DIR)" >&2; exit 2; }
+[ -x "$build/dhfcast" ] || { echo "bench: build first (cmake --build $build)" >&2; exit 2; }
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+printf '%-15s %5s %6s %8s %-6s %s\n' model parts molds molds_s check print
+for m in $models; do
+  out="$work/$m"
+  if ! "$build/dhfcast" decompose "$models_dir/$m.stl" -o "$out" --quiet $tets 2>"$work/$m.err"; then
+    printf '%-15s decompose failed: %s\n' "$m" "$(tail -1 "$work/$m.err")"
+    continue
+  fi
+  read -r parts built secs < <(python3 - "$out/decomposition.json" <<'PY'
+import json, sys
+j = json.load(open(sys.argv[1]))
+parts = j["parts"]
+built = sum(1 for p in parts if "up" in p.get("molds", {}))
+print(len(parts), built, round(j.get("timings_s", {}).get("molds", 0.0), 1))
+PY
+)
+  verdict="$("$build/dhfcast" check "$out" | awk '$2 == "molds" {print $1}')"
+  print="$("$here/tests/print_check.sh" "$out" --slice first | tail -1 | sed 's/print_check: //')"
+  printf '%-15s %5s %6s %8s %-6s %s\n' "$m" "$parts" "$built" "$secs" "$verdict" "$print"
+done

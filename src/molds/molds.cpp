@@ -1,0 +1,522 @@
+// The mold stage: per part, a block split by a height-field parting surface, minus the part, with
+// a pour sprue, air vents and registration keys (paper §4.3.2).
+#include "dhfcast/molds.h"
+
+#include <oneapi/tbb/parallel_for.h>
+
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <cfenv>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "dhfcast/error.h"
+#include "dhfcast/mesh.h"
+#include "molds_internal.h"
+
+namespace dhfcast {
+
+namespace {
+
+using namespace detail;
+
+constexpr int kGravityCandidates = 24;  // directions orthogonal to d tried as "up"
+constexpr int kGridCells = 160;         // cells along the block's longer side
+constexpr int kChannelSegments = 16;
+constexpr int kKeySegments = 32;
+
+void require(bool ok, const std::string& what) {
+  if (!ok) throw Error(ErrorCode::InvalidOptions, "invalid option: " + what);
+}
+
+// Local frame of a mold: x = up x d, y = up (gravity), w = d.
+struct Frame {
+  Vec3 x, y, w;
+  Vec3 world(const Vec3& local) const { return local.x() * x + local.y() * y + local.z() * w; }
+  Vec3 local(const Vec3& p) const { return {p.dot(x), p.dot(y), p.dot(w)}; }
+};
+
+void to_world(TriMesh& m, const Frame& f) {
+  for (Vec3& p : m.vertices) p = f.world(p);
+}
+
+// The parting surface: heights w = h(x, y) on a regular grid over the block's footprint, each cell
+// split into two triangles along its (i, j)-(i+1, j+1) diagonal.
+struct HeightGrid {
+  double x0 = 0, y0 = 0, s = 1;
+  int nx = 0, ny = 0;              // cells; nodes are (nx + 1) x (ny + 1)
+  std::vector<double> h;           // per node
+  std::vector<double> lo, hi;      // per node on the part: the interval the surface is in
+  std::vector<std::uint8_t> part;  // per node: 1 the line along d through it meets the part,
+                                   // 2 its height is fixed although it does not
+  int id(int i, int j) const { return j * (nx + 1) + i; }
+  double x(int i) const { return x0 + i * s; }
+  double y(int j) const { return y0 + j * s; }
+  // The piecewise-linear surface's height at (x, y), clamped to the grid.
+  double height(double px, double py) const {
+    const double u = std::clamp((px - x0) / s, 0.0, double(nx)),
+                 v = std::clamp((py - y0) / s, 0.0, double(ny));
+    const int i = std::min(int(u), nx - 1), j = std::min(int(v), ny - 1);
+    const double fu = u - i, fv = v - j;
+    const double a = h[id(i, j)], b = h[id(i + 1, j)], c = h[id(i + 1, j + 1)],
+                 e = h[id(i, j + 1)];
+    return fu >= fv ? a + fu * (b - a) + fv * (c - b) : a + fv * (e - a) + fu * (c - e);
+  }
+};
+
+// Fills the heights of the nodes off the part by harmonic extension (discrete Laplace equation,
+// the part's nodes fixed, natural boundary at the block's walls): smooth, and between the part's
+// heights, so it stays at least a wall away from the block's top and bottom.
+void extend_harmonically(HeightGrid& g) {
+  const int n = (g.nx + 1) * (g.ny + 1);
+  std::vector<int> unknown(n, -1);
+  int m = 0;
+  for (int k = 0; k < n; ++k)
+    if (!g.part[k]) unknown[k] = m++;
+  if (m == 0) return;
+  std::vector<Eigen::Triplet<double>> entries;
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(m);
+  for (int j = 0; j <= g.ny; ++j)
+    for (int i = 0; i <= g.nx; ++i) {
+      const int row = unknown[g.id(i, j)];
+      if (row < 0) continue;
+      const int ni[4] = {i - 1, i + 1, i, i}, nj[4] = {j, j, j - 1, j + 1};
+      double degree = 0;
+      for (int q = 0; q < 4; ++q) {
+        if (ni[q] < 0 || ni[q] > g.nx || nj[q] < 0 || nj[q] > g.ny) continue;
+        degree += 1;
+        const int k = g.id(ni[q], nj[q]);
+        if (unknown[k] >= 0)
+          entries.emplace_back(row, unknown[k], -1.0);
+        else
+          rhs[row] += g.h[k];
+      }
+      entries.emplace_back(row, row, degree);
+    }
+  Eigen::SparseMatrix<double> a(m, m);
+  a.setFromTriplets(entries.begin(), entries.end());
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(a);
+  if (solver.info() != Eigen::Success)
+    throw Error(ErrorCode::Internal, "internal error: parting surface: factorization failed");
+  const Eigen::VectorXd x = solver.solve(rhs);
+  for (int k = 0; k < n; ++k)
+    if (unknown[k] >= 0) g.h[k] = x[unknown[k]];
+}
+
+// Near the part's outline the surface must meet the part where its parting line is: a cell
+// straddling the outline interpolates between its nodes, so both sides of the outline take the
+// height of the nearest parting-line point (clamped into the part on lines meeting it), and the
+// surface crosses the outline at the parting line's height instead of cutting a sliver off a
+// wedge-shaped rim.
+void pin_to_parting_line(HeightGrid& g, const TriMesh& part, const FaceSplit& split,
+                         const Frame& frame) {
+  // Parting-line points (vertices and edge midpoints) binned by cell.
+  std::vector<Vec3> points;
+  for (const auto& e : split.parting_edges) {
+    const Vec3 a = frame.local(part.vertices[e[0]]), b = frame.local(part.vertices[e[1]]);
+    points.push_back(a);
+    points.push_back(0.5 * (a + b));
+  }
+  std::vector<std::vector<std::int32_t>> bins((g.nx + 1) * (g.ny + 1));
+  auto cell_of = [&](const Vec3& p, int& i, int& j) {
+    i = std::clamp(int(std::floor((p.x() - g.x0) / g.s + 0.5)), 0, g.nx);
+    j = std::clamp(int(std::floor((p.y() - g.y0) / g.s + 0.5)), 0, g.ny);
+  };
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    int i, j;
+    cell_of(points[k], i, j);
+    bins[g.id(i, j)].push_back(static_cast<std::int32_t>(k));
+  }
+  // Nodes within two cells of the outline (a node whose 5x5 neighbourhood has both kinds).
+  const int n = (g.nx + 1) * (g.ny + 1);
+  std::vector<double> target(n, std::numeric_limits<double>::quiet_NaN()), near_lo(n),
+      near_hi(n);
+  tbb::parallel_for(0, n, [&](int k) {
+    const int i = k % (g.nx + 1), j = k / (g.nx + 1);
+    bool in = false, out = false;
+    for (int dj = -2; dj <= 2; ++dj)
+      for (int di = -2; di <= 2; ++di) {
+        const int a = i + di, b = j + dj;
+        if (a < 0 || a > g.nx || b < 0 || b > g.ny) continue;
+        (g.part[g.id(a, b)] ? in : out) = true;
+      }
+    if (!in || !out) return;
+    // Off the part, the surface keeps to the nearest part node's interval, so that it does not
+    // lie in the plane of a face the parting line runs along.
+    if (!g.part[k]) {
+      double nearest = INFINITY;
+      for (int dj = -2; dj <= 2; ++dj)
+        for (int di = -2; di <= 2; ++di) {
+          const int a = i + di, b = j + dj;
+          if (a < 0 || a > g.nx || b < 0 || b > g.ny || !g.part[g.id(a, b)]) continue;
+          if (di * di + dj * dj < nearest) {
+            nearest = di * di + dj * dj;
+            near_lo[k] = g.lo[g.id(a, b)];
+            near_hi[k] = g.hi[g.id(a, b)];
+          }
+        }
+    }
+    double best = 9.0 * g.s * g.s;  // search three cells around
+    for (int dj = -3; dj <= 3; ++dj)
+      for (int di = -3; di <= 3; ++di) {
+        const int a = i + di, b = j + dj;
+        if (a < 0 || a > g.nx || b < 0 || b > g.ny) continue;
+        for (std::int32_t q : bins[g.id(a, b)]) {
+          const double dx = points[q].x() - g.x(i), dy = points[q].y() - g.y(j);
+          const double d2 = dx * dx + dy * dy;
+          if (d2 < best || (d2 == best && points[q].z() < target[k])) {
+            best = d2;
+            target[k] = points[q].z();
+          }
+        }
+      }
+  });
+  for (int k = 0; k < n; ++k) {
+    if (std::isnan(target[k])) continue;
+    // Not on the part's faces themselves: a quarter of the line's way in.
+    const double lo = g.part[k] ? g.lo[k] : near_lo[k], hi = g.part[k] ? g.hi[k] : near_hi[k];
+    g.h[k] = std::clamp(target[k], lo + 0.25 * (hi - lo), hi - 0.25 * (hi - lo));
+    if (!g.part[k]) g.part[k] = 2;  // fixed, but off the part
+  }
+}
+
+// One half of the block: the region between the parting surface and the plane w = w_far (the
+// top for the up half, the bottom for the down half), in local coordinates, closed and outward.
+TriMesh block_half(const HeightGrid& g, double w_far) {
+  TriMesh m;
+  for (int j = 0; j <= g.ny; ++j)
+    for (int i = 0; i <= g.nx; ++i) m.vertices.emplace_back(g.x(i), g.y(j), g.h[g.id(i, j)]);
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 0; i < g.nx; ++i) {
+      const int a = g.id(i, j), b = g.id(i + 1, j), c = g.id(i + 1, j + 1), e = g.id(i, j + 1);
+      m.triangles.push_back({a, b, c});
+      m.triangles.push_back({a, c, e});
+    }
+  // The grid's border, counter-clockwise seen from +w, and the same points on the far plane.
+  std::vector<int> border;
+  for (int i = 0; i < g.nx; ++i) border.push_back(g.id(i, 0));
+  for (int j = 0; j < g.ny; ++j) border.push_back(g.id(g.nx, j));
+  for (int i = g.nx; i > 0; --i) border.push_back(g.id(i, g.ny));
+  for (int j = g.ny; j > 0; --j) border.push_back(g.id(0, j));
+  const auto far0 = static_cast<std::int32_t>(m.vertices.size());
+  for (int v : border) {
+    Vec3 p = m.vertices[v];
+    p.z() = w_far;
+    m.vertices.push_back(p);
+  }
+  const auto centre = static_cast<std::int32_t>(m.vertices.size());
+  m.vertices.emplace_back(g.x0 + 0.5 * g.nx * g.s, g.y0 + 0.5 * g.ny * g.s, w_far);
+  const auto nb = static_cast<std::int32_t>(border.size());
+  for (std::int32_t k = 0; k < nb; ++k) {
+    const std::int32_t k1 = (k + 1) % nb;
+    // Walls, then the far face as a fan around its centre (it is a convex rectangle).
+    m.triangles.push_back({border[k1], border[k], far0 + k});
+    m.triangles.push_back({border[k1], far0 + k, far0 + k1});
+    m.triangles.push_back({centre, far0 + k1, far0 + k});
+  }
+  orient_outward(m);
+  return m;
+}
+
+// A straight channel along y at height w = wc, from y_start to y_end: circular cross-sections
+// in the planes y = const, with rings at the grid rows between them (so its faces follow the
+// parting surface's cells).
+TriMesh channel_tube(const HeightGrid& g, double xc, double wc, double y_start, double y_end,
+                     double radius) {
+  std::vector<double> stations{y_start};
+  for (int j = 0; j <= g.ny; ++j)
+    if (g.y(j) > y_start + 0.1 * g.s && g.y(j) < y_end - 0.1 * g.s) stations.push_back(g.y(j));
+  stations.push_back(y_end);
+  TriMesh m;
+  const int n = kChannelSegments;
+  for (double y : stations) {
+    for (int q = 0; q < n; ++q) {
+      const double angle = (q + 0.5) * 2 * std::numbers::pi / n;
+      m.vertices.emplace_back(xc + radius * std::cos(angle), y, wc + radius * std::sin(angle));
+    }
+  }
+  const auto rings = static_cast<std::int32_t>(stations.size());
+  for (std::int32_t r = 0; r + 1 < rings; ++r)
+    for (std::int32_t q = 0; q < n; ++q) {
+      const std::int32_t a = r * n + q, b = r * n + (q + 1) % n;
+      m.triangles.push_back({a, b, b + n});
+      m.triangles.push_back({a, b + n, a + n});
+    }
+  // Caps: fans from a ring vertex (no centre vertex, which would lie on the parting surface).
+  for (std::int32_t q = 1; q + 1 < n; ++q) {
+    m.triangles.push_back({0, q + 1, q});
+    const std::int32_t last = (rings - 1) * n;
+    m.triangles.push_back({last, last + q, last + q + 1});
+  }
+  orient_outward(m);
+  return m;
+}
+
+// Makes the surface flat at `height` within `radius` of the line x = xc, y >= y_from (a
+// channel's path), so a straight channel at that height straddles it. Nodes on the part keep
+// within a quarter of their interval from its ends, as pin_to_parting_line() does.
+void flatten_channel(HeightGrid& g, double xc, double y_from, double radius, double height) {
+  for (int j = 0; j <= g.ny; ++j) {
+    if (g.y(j) < y_from) continue;
+    for (int i = 0; i <= g.nx; ++i) {
+      const int k = g.id(i, j);
+      if (std::abs(g.x(i) - xc) > radius) continue;
+      const double margin = 0.25 * (g.hi[k] - g.lo[k]);
+      g.h[k] = g.part[k] == 1 ? std::clamp(height, g.lo[k] + margin, g.hi[k] - margin) : height;
+    }
+  }
+}
+
+void flatten_disc(HeightGrid& g, double xc, double yc, double radius, double height) {
+  for (int j = 0; j <= g.ny; ++j)
+    for (int i = 0; i <= g.nx; ++i)
+      if (std::hypot(g.x(i) - xc, g.y(j) - yc) <= radius && g.part[g.id(i, j)] != 1)
+        g.h[g.id(i, j)] = height;
+}
+
+void round_to_float(TriMesh& m) {
+  for (Vec3& p : m.vertices)
+    for (int k = 0; k < 3; ++k) p[k] = to_float(p[k]);
+}
+
+// Extent of the part along `up`.
+double extent_along(const TriMesh& m, const Vec3& up) {
+  double lo = INFINITY, hi = -INFINITY;
+  for (const Vec3& p : m.vertices) {
+    lo = std::min(lo, p.dot(up));
+    hi = std::max(hi, p.dot(up));
+  }
+  return hi - lo;
+}
+
+}  // namespace
+
+void validate_mold_options(const MoldOptions& o) {
+  require(std::isfinite(o.wall_mm) && o.wall_mm >= 1 && o.wall_mm <= 200,
+          "--wall must be between 1 and 200 mm");
+  require(std::isfinite(o.sprue_diameter_mm) && o.sprue_diameter_mm > 0 &&
+              o.sprue_diameter_mm < 2 * o.wall_mm,
+          "--sprue-diameter must be > 0 and less than twice --wall");
+  require(std::isfinite(o.vent_diameter_mm) && o.vent_diameter_mm > 0 &&
+              o.vent_diameter_mm <= o.sprue_diameter_mm,
+          "--vent-diameter must be > 0 and at most --sprue-diameter");
+  require(std::isfinite(o.key_clearance_mm) && o.key_clearance_mm >= 0 &&
+              o.key_clearance_mm <= 0.2 * o.wall_mm,
+          "--key-clearance must be between 0 and a fifth of --wall");
+  require(std::isfinite(o.epsilon_mm) && o.epsilon_mm >= 0, "mold epsilon must be >= 0");
+  require(o.gravity_up.allFinite(), "the pouring direction must be finite");
+}
+
+namespace {
+
+// One try at a mold; `attempt` moves the parting surface's grid by a fraction of a cell, which
+// changes every triangle the booleans make.
+Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
+  // Worker threads may inherit another rounding mode (TBB copies the creating thread's
+  // floating-point settings); constructions must round the same way on every thread.
+  std::fesetround(FE_TONEAREST);
+  const std::string name = "part " + std::to_string(part.id);
+  Mold mold;
+  mold.part = part.id;
+  // The cavity is the part exactly as its STL stores it.
+  TriMesh cavity = part.mesh;
+  round_to_float(cavity);
+  cavity = unweld_nonmanifold(cavity);
+  const Vec3 d = part.direction.normalized();
+  const double diag = bounding_box(cavity.vertices).diagonal();
+  const double hair = 1e-6 * std::max(diag, 1.0);
+
+  // --- 1. face split and parting line ---
+  const LineIndex index(cavity);
+  const FaceSplit split = split_faces(cavity, index, d, opts.epsilon_mm);
+  mold.split = split.stats;
+
+  // --- 2. gravity: orthogonal to d, so every air trap is on the parting line (paper Fig. 9);
+  // fewest traps, then the shortest fall ---
+  const double prominence = std::max(0.5 * opts.vent_diameter_mm, opts.epsilon_mm);
+  const Vec3 e1 = d.unitOrthogonal(), e2 = d.cross(e1).normalized();
+  Vec3 up = e1;
+  std::vector<std::int32_t> traps;
+  double best_extent = INFINITY;
+  const Vec3 wanted = opts.gravity_up - opts.gravity_up.dot(d) * d;
+  const bool automatic = opts.gravity_up.isZero();
+  if (!automatic && wanted.norm() < 1e-6 * opts.gravity_up.norm())
+    throw Error(ErrorCode::InvalidOptions, name + ": the pouring direction is parallel to d");
+  for (int k = 0; k < (automatic ? kGravityCandidates : 1); ++k) {
+    const double angle = 2 * std::numbers::pi * k / kGravityCandidates;
+    const Vec3 candidate =
+        automatic ? Vec3(std::cos(angle) * e1 + std::sin(angle) * e2) : wanted.normalized();
+    std::vector<std::int32_t> t = trapped_maxima(cavity, split, candidate, prominence);
+    const double extent = extent_along(cavity, candidate);
+    if (k == 0 || t.size() < traps.size() ||
+        (t.size() == traps.size() && extent < best_extent - 1e-9)) {
+      up = candidate;
+      traps = std::move(t);
+      best_extent = extent;
+    }
+  }
+  const Frame frame{up.cross(d).normalized(), up, d};
+  mold.gravity_up = up;
+
+  // --- 3. block and parting surface ---
+  Box3 local;
+  local.min = local.max = frame.local(cavity.vertices.front());
+  for (const Vec3& p : cavity.vertices) {
+    const Vec3 q = frame.local(p);
+    local.min = local.min.cwiseMin(q);
+    local.max = local.max.cwiseMax(q);
+  }
+  const double wall = opts.wall_mm;
+  const double key_base_r = 0.6 * wall, key_top_r = 0.35 * wall, key_h = 0.6 * wall;
+  const double c = opts.key_clearance_mm;
+  const double margin = 2 * wall + 2 * key_base_r;  // room for keys a wall from cavity and edge
+  HeightGrid g;
+  const double span_x = local.max.x() - local.min.x() + 2 * margin;
+  const double span_y = local.max.y() - local.min.y() + 2 * margin;
+  g.s = std::max(span_x, span_y) / kGridCells;
+  // A fraction of a cell off the part's bounding box, so grid lines do not run along its walls.
+  const double shift_x = std::fmod(0.37 + 0.31 * attempt, 1.0),
+               shift_y = std::fmod(0.29 + 0.43 * attempt, 1.0);
+  g.x0 = local.min.x() - margin - shift_x * g.s;
+  g.y0 = local.min.y() - margin - shift_y * g.s;
+  g.nx = static_cast<int>(std::ceil((span_x + 2 * shift_x * g.s) / g.s));
+  g.ny = static_cast<int>(std::ceil((span_y + 2 * shift_y * g.s) / g.s));
+  const int nodes = (g.nx + 1) * (g.ny + 1);
+  g.h.assign(nodes, 0.0);
+  g.part.assign(nodes, 0);
+  g.lo.assign(nodes, 0.0);
+  g.hi.assign(nodes, 0.0);
+  // On a line meeting the part, the surface passes through it (bottom <= h <= top): then the
+  // up half holds only what lies above the part and the down half what lies below, and both
+  // release. Where the part is a DHF only up to epsilon (several intervals), the thickest one.
+  tbb::parallel_for(0, nodes, [&](int k) {
+    const int i = k % (g.nx + 1), j = k / (g.nx + 1);
+    const std::vector<LineInterval> in =
+        robust_line_intervals(index, frame.world(Vec3(g.x(i), g.y(j), 0.0)), d, hair);
+    double best = -1;
+    for (const LineInterval& iv : in)
+      if (iv.end - iv.begin > best) {
+        best = iv.end - iv.begin;
+        g.h[k] = 0.5 * (iv.begin + iv.end);
+        g.lo[k] = iv.begin;
+        g.hi[k] = iv.end;
+        g.part[k] = 1;
+      }
+  });
+  pin_to_parting_line(g, cavity, split, frame);
+  extend_harmonically(g);
+  const double w_top = local.max.z() + wall, w_bottom = local.min.z() - wall;
+  mold.block_mm = Vec3(g.nx * g.s, g.ny * g.s, w_top - w_bottom);
+
+  // --- 4. keys: four, in the block's corners, a wall from the cavity's box and the edges ---
+  TriMesh bumps, sockets;
+  const double kx[2] = {local.min.x() - wall - key_base_r, local.max.x() + wall + key_base_r};
+  const double ky[2] = {local.min.y() - wall - key_base_r, local.max.y() + wall + key_base_r};
+  const double embed = 0.25 * wall;  // how far a bump reaches into the down half
+  const double slope = (key_base_r - key_top_r) / key_h;
+  for (double yk : ky)
+    for (double xk : kx) {
+      const double hk = g.height(xk, yk);
+      flatten_disc(g, xk, yk, key_base_r + slope * embed + c + g.s, hk);
+      TriMesh bump = make_frustum(Vec3(xk, yk, hk - embed), Vec3::UnitZ(),
+                                  key_base_r + slope * embed, key_top_r, key_h + embed,
+                                  kKeySegments);
+      TriMesh socket = make_frustum(Vec3(xk, yk, hk - embed), Vec3::UnitZ(),
+                                    key_base_r + slope * embed + c, key_top_r + c,
+                                    key_h + embed + c, kKeySegments);
+      append_mesh(bumps, bump);
+      append_mesh(sockets, socket);
+      MoldKey key;
+      key.base = frame.world(Vec3(xk, yk, hk));
+      key.base_diameter_mm = 2 * key_base_r;
+      key.top_diameter_mm = 2 * key_top_r;
+      key.height_mm = key_h;
+      mold.keys.push_back(key);
+    }
+
+  // --- 5. sprue at the highest trap, a vent at every other; straight up to the block's edge ---
+  TriMesh channels;
+  std::vector<std::array<double, 2>> taken;  // (x, radius) of the channels kept
+  const double y_exit = g.y(g.ny) + wall;    // past the block's edge
+  for (std::size_t t = 0; t < traps.size(); ++t) {
+    const double radius = 0.5 * (t == 0 ? opts.sprue_diameter_mm : opts.vent_diameter_mm);
+    // A fraction of a cell off the trap's vertex, so the channel's axis does not run along the
+    // part's edges or walls.
+    const Vec3 p = frame.local(cavity.vertices[traps[t]]) + Vec3(0.123 * g.s, 0, 0);
+    // Two channels side by side would merge; the higher one vents this trap's neighbourhood.
+    bool clash = false;
+    for (const auto& [x, r] : taken) clash |= std::abs(p.x() - x) < r + radius + 2 * g.s;
+    if (clash) continue;
+    taken.push_back({p.x(), radius});
+    // Level with the parting surface where the channel leaves the cavity; it starts a radius
+    // inside the cavity, so it opens into it over its full width.
+    const double wc = g.height(p.x(), p.y());
+    const double y_start = p.y() - radius;
+    flatten_channel(g, p.x(), y_start - g.s, radius + g.s, wc);
+    append_mesh(channels, channel_tube(g, p.x(), wc, y_start, y_exit, radius));
+    MoldChannel ch;
+    ch.mouth = frame.world(Vec3(p.x(), y_start, wc));
+    ch.exit = frame.world(Vec3(p.x(), y_exit, wc));
+    ch.diameter_mm = 2 * radius;
+    (t == 0 ? mold.sprues : mold.vents).push_back(ch);
+  }
+
+  // --- 6. halves: block halves minus the cavity and channels; bumps on down, sockets in up ---
+  TriMesh up_block = block_half(g, w_top), down_block = block_half(g, w_bottom);
+  for (TriMesh* m : {&up_block, &down_block, &channels, &bumps, &sockets}) to_world(*m, frame);
+  // The cavity is cut last: the other operands are simple closed shapes made here, and only
+  // the part can intersect or touch itself.
+  mold.up = carve(up_block, {{BooleanOp::Difference, &sockets, name + ": sockets"},
+                             {BooleanOp::Difference, &channels, name + ": up half channels"},
+                             {BooleanOp::Difference, &cavity, name + ": up half"}});
+  mold.down = carve(down_block, {{BooleanOp::Union, &bumps, name + ": keys"},
+                                 {BooleanOp::Difference, &channels, name + ": down half channels"},
+                                 {BooleanOp::Difference, &cavity, name + ": down half"}});
+
+  // --- 7. what is written is what is checked ---
+  for (auto [half, label] : {std::pair{&mold.up, "up"}, std::pair{&mold.down, "down"}}) {
+    canonicalize(*half);  // the clean-up visits triangles in order: make the order the geometry's
+    const std::string problem = finish_solid(*half);
+    canonicalize(*half);
+    if (!problem.empty())
+      throw Error(ErrorCode::BooleanFailed, name + ": " + label + " half " + problem);
+    const MeshDiagnostics diag_half = validate_mesh(weld_exact(*half));
+    if (!diag_half.ok())
+      throw Error(ErrorCode::BooleanFailed,
+                  name + ": " + label + " half: " + diag_half.first_problem);
+  }
+  return mold;
+}
+
+}  // namespace
+
+Mold build_mold(const Part& part, const MoldOptions& opts) {
+  validate_mold_options(opts);
+  constexpr int kAttempts = 4;
+  for (int attempt = 0;; ++attempt) {
+    try {
+      return try_mold(part, opts, attempt);
+    } catch (const Error& e) {
+      if (e.code() != ErrorCode::BooleanFailed || attempt + 1 == kAttempts) throw;
+    }
+  }
+}
+
+std::vector<Mold> build_molds(const std::vector<Part>& parts, const MoldOptions& opts) {
+  validate_mold_options(opts);
+  std::vector<Mold> molds(parts.size());
+  tbb::parallel_for(std::size_t{0}, parts.size(), [&](std::size_t i) {
+    try {
+      molds[i] = build_mold(parts[i], opts);
+    } catch (const Error& e) {
+      molds[i] = Mold{};
+      molds[i].part = parts[i].id;
+      molds[i].error = e.what();
+    }
+  });
+  return molds;
+}
+
+}  // namespace dhfcast

@@ -1,0 +1,212 @@
+// Mold halves of single parts: closed solids that release from the part and mould its surface.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+
+#include <oneapi/tbb/global_control.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "dhfcast/check.h"
+#include "dhfcast/error.h"
+#include "dhfcast/mesh.h"
+#include "dhfcast/molds.h"
+#include "support/test_support.h"
+
+using namespace dhfcast;
+
+namespace {
+
+Part part_of(TriMesh mesh, const Vec3& direction) {
+  Part p;
+  p.mesh = std::move(mesh);
+  p.direction = direction.normalized();
+  p.volume_mm3 = signed_volume(p.mesh);
+  return p;
+}
+
+// A UV sphere (closed, outward), centre c, radius r.
+TriMesh make_sphere(const Vec3& c, double r, int rings = 24, int segments = 48) {
+  TriMesh m;
+  m.vertices.push_back(c + Vec3(0, 0, -r));
+  for (int i = 1; i < rings; ++i) {
+    const double phi = M_PI * i / rings - M_PI / 2;
+    for (int j = 0; j < segments; ++j) {
+      const double th = 2 * M_PI * j / segments;
+      m.vertices.push_back(c + r * Vec3(std::cos(phi) * std::cos(th),
+                                        std::cos(phi) * std::sin(th), std::sin(phi)));
+    }
+  }
+  m.vertices.push_back(c + Vec3(0, 0, r));
+  const int top = static_cast<int>(m.vertices.size()) - 1;
+  auto ring = [&](int i, int j) { return 1 + (i - 1) * segments + (j % segments); };
+  for (int j = 0; j < segments; ++j) {
+    m.triangles.push_back({0, ring(1, j + 1), ring(1, j)});
+    m.triangles.push_back({top, ring(rings - 1, j), ring(rings - 1, j + 1)});
+    for (int i = 1; i + 1 < rings; ++i) {
+      m.triangles.push_back({ring(i, j), ring(i, j + 1), ring(i + 1, j + 1)});
+      m.triangles.push_back({ring(i, j), ring(i + 1, j + 1), ring(i + 1, j)});
+    }
+  }
+  return m;
+}
+
+// The independent checker's verdict on one part and its mold, written as an output folder.
+CheckItem checked_molds(const Part& part, const Mold& mold) {
+  namespace fs = std::filesystem;
+  const fs::path dir = test::temp_dir("mold");
+  fs::create_directories(dir / "parts");
+  fs::create_directories(dir / "molds");
+  write_stl((dir / "parts/part_000.stl").string(), part.mesh);
+  write_stl((dir / "molds/up.stl").string(), mold.up);
+  write_stl((dir / "molds/down.stl").string(), mold.down);
+  auto vec = [](const Vec3& v) {
+    char text[128];
+    std::snprintf(text, sizeof text, "[%.17g, %.17g, %.17g]", v.x(), v.y(), v.z());
+    return std::string(text);
+  };
+  auto channels = [&](const std::vector<MoldChannel>& list) {
+    std::string out = "[";
+    for (const MoldChannel& c : list)
+      out += std::string(out.size() > 1 ? ", " : "") + "{\"mouth\": " + vec(c.mouth) +
+             ", \"exit\": " + vec(c.exit) + ", \"diameter_mm\": " + std::to_string(c.diameter_mm) +
+             "}";
+    return out + "]";
+  };
+  std::string keys = "[";
+  for (std::size_t k = 0; k < mold.keys.size(); ++k) keys += k ? ", {}" : "{}";
+  keys += "]";
+  std::ofstream(dir / "decomposition.json")
+      << "{\"format\": \"dhfcast-decomposition\", \"version\": 1, \"input\": {\"volume_mm3\": "
+      << part.volume_mm3 << "}, \"parts\": [{\"id\": 0, \"mesh\": \"parts/part_000.stl\", "
+      << "\"direction\": " << vec(part.direction) << ", \"volume_mm3\": " << part.volume_mm3
+      << ", \"molds\": {\"up\": \"molds/up.stl\", \"down\": \"molds/down.stl\", \"sprues\": "
+      << channels(mold.sprues) << ", \"vents\": " << channels(mold.vents) << ", \"keys\": " << keys
+      << "}}], \"assembly_order\": [0]}\n";
+  CheckOptions o;
+  o.outdir = dir.string();
+  const CheckReport report = check_output(o);
+  for (const CheckItem& item : report.items) {
+    if (item.name == "contract" || item.name == "solids") {
+      EXPECT_TRUE(item.passed) << item.name << ": " << item.summary;
+    }
+    if (item.name == "molds") return item;
+  }
+  ADD_FAILURE() << "no molds check";
+  return {};
+}
+
+void expect_valid_mold(const Mold& mold) {
+  ASSERT_EQ(mold.error, "");
+
+  for (const TriMesh* half : {&mold.up, &mold.down}) {
+    EXPECT_EQ(test::solid_topology_problem(*half), "");
+    const MeshDiagnostics d = validate_mesh(*half);
+    EXPECT_TRUE(d.ok()) << d.first_problem;
+    for (const Vec3& p : half->vertices)
+      for (int k = 0; k < 3; ++k) EXPECT_EQ(p[k], double(float(p[k])));
+  }
+  EXPECT_EQ(mold.sprues.size(), 1u);
+  EXPECT_GE(mold.keys.size(), 3u);
+  EXPECT_NEAR(mold.gravity_up.norm(), 1.0, 1e-9);
+}
+
+TEST(Molds, CubeHalvesAreClosedSolids) {
+  const Part cube = part_of(test::make_box(Vec3(0, 0, 0), Vec3(10, 10, 10)), Vec3::UnitZ());
+  const Mold mold = build_mold(cube, {});
+  expect_valid_mold(mold);
+  EXPECT_NEAR(mold.gravity_up.dot(Vec3::UnitZ()), 0.0, 1e-12);
+  const CheckItem item = checked_molds(cube, mold);
+  EXPECT_TRUE(item.passed) << item.summary;
+}
+
+TEST(Molds, TiltedSphereHalvesAreClosedSolids) {
+  const Part sphere = part_of(make_sphere(Vec3(1, 2, 3), 20), Vec3(0.3, -0.2, 1.0));
+  const Mold mold = build_mold(sphere, {});
+  expect_valid_mold(mold);
+  const CheckItem item = checked_molds(sphere, mold);
+  EXPECT_TRUE(item.passed) << item.summary;
+}
+
+// A ring lying across d: its footprint has a hole, so the parting surface spans two loops; the
+// hole's rim traps no air.
+TEST(Molds, RingHasOneSprueAndReleases) {
+  const std::vector<double> xs = {0, 6, 24, 30}, ys = {0, 6, 24, 30}, zs = {0, 8};
+  const TriMesh ring = test::grid_surface(
+      xs, ys, zs, [](int i, int j, int) { return !(i == 1 && j == 1); });
+  const Part part = part_of(ring, Vec3::UnitZ());
+  const Mold mold = build_mold(part, {});
+  expect_valid_mold(mold);
+  EXPECT_TRUE(mold.vents.empty());
+  const CheckItem item = checked_molds(part, mold);
+  EXPECT_TRUE(item.passed) << item.summary;
+}
+
+// Two towers on a base, poured with the towers up: each tower's top traps air. The sprue takes
+// one, a vent the other, and both lie on the parting line.
+TEST(Molds, EveryAirTrapGetsAVent) {
+  const std::vector<double> xs = {0, 8, 20, 28}, ys = {0, 10}, zs = {0, 6, 30};
+  const TriMesh towers = test::grid_surface(
+      xs, ys, zs, [](int i, int, int k) { return k == 0 || i != 1; });
+  const Part part = part_of(towers, Vec3::UnitY());  // a height field along y
+  MoldOptions opts;
+  opts.gravity_up = Vec3(0, 0.3, 1);  // its part along d does not count
+  const Mold mold = build_mold(part, opts);
+  expect_valid_mold(mold);
+  EXPECT_NEAR(mold.gravity_up.dot(Vec3::UnitZ()), 1.0, 1e-12);
+  ASSERT_EQ(mold.vents.size(), 1u);
+  EXPECT_EQ(mold.vents[0].diameter_mm, opts.vent_diameter_mm);
+  EXPECT_EQ(mold.sprues[0].diameter_mm, opts.sprue_diameter_mm);
+  // One channel above each tower, starting inside it and leaving the block upwards.
+  const double x_sprue = mold.sprues[0].mouth.x(), x_vent = mold.vents[0].mouth.x();
+  EXPECT_TRUE((x_sprue < 9 && x_vent > 19) || (x_sprue > 19 && x_vent < 9));
+  for (const MoldChannel& c : {mold.sprues[0], mold.vents[0]}) {
+    EXPECT_LT(c.mouth.z(), 30.0);
+    EXPECT_GT(c.exit.z(), 35.0);
+  }
+  const CheckItem item = checked_molds(part, mold);
+  EXPECT_TRUE(item.passed) << item.summary;
+
+  // Chosen automatically, the pouring direction has the fewest traps: one.
+  const Mold automatic = build_mold(part, {});
+  expect_valid_mold(automatic);
+  EXPECT_TRUE(automatic.vents.empty());
+}
+
+TEST(Molds, SameMoldOnAnyThreadCount) {
+  const std::vector<Part> parts = {
+      part_of(make_sphere(Vec3(0, 0, 0), 12, 12, 24), Vec3(0.3, 0.4, 1.0)),
+      part_of(test::make_box(Vec3(0, 0, 0), Vec3(12, 8, 5)), Vec3(1.0, 0.0, 0.2))};
+  const std::vector<Mold> many = build_molds(parts, {});
+  const std::vector<Mold> again = build_molds(parts, {});
+  tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+  const std::vector<Mold> single = build_molds(parts, {});
+  ASSERT_EQ(many.size(), single.size());
+  for (std::size_t i = 0; i < many.size(); ++i) {
+    EXPECT_EQ(many[i].up.vertices, again[i].up.vertices) << "part " << i;
+    EXPECT_EQ(many[i].up.vertices, single[i].up.vertices);
+    EXPECT_EQ(many[i].up.triangles, single[i].up.triangles);
+    EXPECT_EQ(many[i].down.vertices, single[i].down.vertices);
+    EXPECT_EQ(many[i].down.triangles, single[i].down.triangles);
+  }
+}
+
+TEST(Molds, BadOptionsAreNamed) {
+  const Part cube = part_of(test::make_box(Vec3(0, 0, 0), Vec3(10, 10, 10)), Vec3::UnitZ());
+  MoldOptions o;
+  o.wall_mm = 0.5;
+  try {
+    build_mold(cube, o);
+    FAIL() << "accepted a 0.5 mm wall";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::InvalidOptions);
+    EXPECT_NE(std::string(e.what()).find("--wall"), std::string::npos);
+  }
+  o = {};
+  o.vent_diameter_mm = 8;
+  EXPECT_THROW(build_mold(cube, o), Error);
+}
+
+}  // namespace
