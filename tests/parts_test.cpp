@@ -337,6 +337,155 @@ TEST(ExtractParts, ScrambledLabelsGiveClosedManifoldParts) {
   }
 }
 
+// --- sandwiched tets ---
+
+// Slightly oblique directions, so that lines through tet barycentres never run along the grid's
+// faces: the repair must not depend on lucky alignments.
+const Vec3 kUp = Vec3(0.03, 0.02, 1.0).normalized();
+const Vec3 kSide = Vec3(1.0, 0.04, 0.03).normalized();
+const auto kAllowAll = [](std::int32_t, std::int32_t, std::int32_t) { return true; };
+
+// A 6x6x6 box whose part 0 (direction up) is wrapped around a tongue of part 1 (direction
+// sideways) that comes in from the -x side at mid height: lines along up through the tongue
+// meet part 0 below it and above it.
+int tongue(const Cell& c) { return c[2] >= 2 && c[2] <= 3 && c[0] <= 3 && c[1] >= 1 && c[1] <= 4; }
+
+TEST(AbsorbSandwichedTets, TongueInsideAnotherPartsColumnJoinsIt) {
+  const Grid g = make_grid(6, 6, 6, 10.0, 0.05);
+  auto label = per_cell(g, tongue);
+  const std::int32_t tongue_tets = static_cast<std::int32_t>(std::count(label.begin(), label.end(), 1));
+  ASSERT_EQ(tongue_tets, 6 * 4 * 4 * 2);
+  // Before: part 0 is not a double height field along its direction.
+  const SandwichRepair repair =
+      absorb_sandwiched_tets(g.mesh, label, zeros(g), {{kUp, kSide}}, kAllowAll);
+  EXPECT_TRUE(repair.converged);
+  EXPECT_EQ(repair.moved_tets, tongue_tets);
+  EXPECT_EQ(repair.stuck_tets, 0);
+  EXPECT_EQ(repair.rounds, 1);
+  EXPECT_EQ(std::count(label.begin(), label.end(), 1), 0);
+  ASSERT_EQ(repair.moves.size(), 1u);
+  EXPECT_EQ(repair.moves[0].from_label, 1);
+  EXPECT_EQ(repair.moves[0].to_label, 0);
+  EXPECT_EQ(repair.moves[0].tets, tongue_tets);
+  EXPECT_NEAR(repair.moves[0].volume_mm3, sum_tet_volumes(g.mesh, [&] {
+    std::vector<std::int32_t> ts;
+    const auto before = per_cell(g, tongue);
+    for (std::int32_t t = 0; t < static_cast<std::int32_t>(before.size()); ++t)
+      if (before[t] == 1) ts.push_back(t);
+    return ts;
+  }()), 1e-6);
+  EXPECT_NEAR(repair.moved_volume_mm3, repair.moves[0].volume_mm3, 1e-9);
+}
+
+TEST(AbsorbSandwichedTets, LayerThatSplitsAPartInTwoStays) {
+  // Across the whole box the middle layers cut part 0 into a top and a bottom part: each is a
+  // double height field, so nothing is sandwiched.
+  const Grid g = make_grid(6, 6, 6, 10.0, 0.05);
+  auto label = per_cell(g, [](const Cell& c) { return c[2] >= 2 && c[2] <= 3; });
+  const auto before = label;
+  const SandwichRepair repair =
+      absorb_sandwiched_tets(g.mesh, label, zeros(g), {{kUp, kSide}}, kAllowAll);
+  EXPECT_TRUE(repair.converged);
+  EXPECT_EQ(repair.moved_tets, 0);
+  EXPECT_EQ(repair.rounds, 0);
+  EXPECT_TRUE(repair.moves.empty());
+  EXPECT_EQ(label, before);
+}
+
+TEST(AbsorbSandwichedTets, TetsTheDirectionDoesNotAllowStayAndAreCounted) {
+  const Grid g = make_grid(6, 6, 6, 10.0, 0.05);
+  auto label = per_cell(g, tongue);
+  const auto before = label;
+  const SandwichRepair repair = absorb_sandwiched_tets(
+      g.mesh, label, zeros(g), {{kUp, kSide}},
+      [&](std::int32_t t, std::int32_t, std::int32_t l) { return before[t] == l; });
+  EXPECT_TRUE(repair.converged);
+  EXPECT_EQ(repair.moved_tets, 0);
+  EXPECT_EQ(repair.stuck_tets, 6 * 4 * 4 * 2);
+  EXPECT_EQ(label, before);
+}
+
+TEST(AbsorbSandwichedTets, OtherRegionsAndNoRoundsLeaveLabelsAlone) {
+  const Grid g = make_grid(6, 6, 6, 10.0, 0.05);
+  auto label = per_cell(g, tongue);
+  const auto before = label;
+  // The tongue is a region of its own: regions never exchange tets.
+  const auto region = per_cell(g, tongue);
+  SandwichRepair repair =
+      absorb_sandwiched_tets(g.mesh, label, region, {{kUp, kSide}, {kUp, kSide}}, kAllowAll);
+  EXPECT_EQ(repair.moved_tets, 0);
+  EXPECT_EQ(label, before);
+  // max_rounds = 0 only counts.
+  SandwichOptions count_only;
+  count_only.max_rounds = 0;
+  repair = absorb_sandwiched_tets(g.mesh, label, zeros(g), {{kUp, kSide}}, kAllowAll, count_only);
+  EXPECT_FALSE(repair.converged);
+  EXPECT_EQ(repair.moved_tets, 0);
+  EXPECT_EQ(repair.stuck_tets, 6 * 4 * 4 * 2);
+  EXPECT_EQ(label, before);
+  count_only.max_rounds = -1;
+  EXPECT_THROW(absorb_sandwiched_tets(g.mesh, label, zeros(g), {{kUp, kSide}}, kAllowAll,
+                                      count_only),
+               Error);
+}
+
+// Every part left by the repair meets each line along its direction through a tet barycentre in
+// one run of tets (counted by walking the grid's cells, independently of the repair's walk).
+TEST(AbsorbSandwichedTets, ScrambledLabelsEndWithoutSandwichesOnAnyThreadCount) {
+  const Grid g = make_grid(8, 8, 8, 5.0);
+  // Blocks of 2x2x2 cells with pseudo-random labels: many nested sandwiches.
+  const auto blocks = scrambled_labels(64, 3, 11);
+  const auto block_label = [&](const Cell& c) {
+    return blocks[((c[2] / 2) * 4 + c[1] / 2) * 4 + c[0] / 2];
+  };
+  auto label = per_cell(g, block_label);
+  const std::vector<std::vector<Vec3>> dirs{{kUp, kSide, Vec3(0.02, -1.0, 0.05).normalized()}};
+  const auto start = label;
+  const SandwichRepair repair = absorb_sandwiched_tets(g.mesh, label, zeros(g), dirs, kAllowAll);
+  EXPECT_GT(repair.moved_tets, 0);
+  EXPECT_TRUE(repair.converged);
+  EXPECT_EQ(repair.stuck_tets, 0);
+
+  // Independent check on the parts: along each part's (nearly axial) direction, a column of
+  // cells through the part must not leave it and come back.
+  const auto parts = extract_parts(g.mesh, label, zeros(g), dirs);
+  std::map<Cell, std::set<int>> parts_in_cell;
+  for (const Part& p : parts)
+    for (std::int32_t t : p.tets) parts_in_cell[g.cell_of_tet[t]].insert(p.id);
+  int sandwiched_cells = 0;
+  for (const Part& p : parts) {
+    const int axis = p.direction_index == 0 ? 2 : (p.direction_index == 1 ? 0 : 1);
+    for (int a = 0; a < 8; ++a)
+      for (int b = 0; b < 8; ++b) {
+        // The column's cells in order; is p in some, then not, then again?
+        int state = 0;  // 0 before p, 1 in p, 2 left p
+        for (int k = 0; k < 8; ++k) {
+          Cell c{};
+          c[axis] = k;
+          c[(axis + 1) % 3] = a;
+          c[(axis + 2) % 3] = b;
+          // Whole cells only: cells shared with another part are mixed at the tet level.
+          const auto& in = parts_in_cell[c];
+          const bool only_p = in.size() == 1 && *in.begin() == p.id;
+          const bool without_p = !in.count(p.id);
+          if (only_p && state == 0) state = 1;
+          if (without_p && state == 1) state = 2;
+          if (only_p && state == 2) {
+            ++sandwiched_cells;
+            state = 1;
+          }
+        }
+      }
+  }
+  EXPECT_EQ(sandwiched_cells, 0);
+
+  tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+  auto again = start;
+  const SandwichRepair repair_one = absorb_sandwiched_tets(g.mesh, again, zeros(g), dirs, kAllowAll);
+  EXPECT_EQ(again, label);
+  EXPECT_EQ(repair_one.moved_tets, repair.moved_tets);
+}
+
 // --- assembly ---
 
 // Parts of a grid labeled per cell, with one direction per label.
