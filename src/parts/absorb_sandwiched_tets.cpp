@@ -110,8 +110,9 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
                                       const std::vector<std::int32_t>& region,
                                       const std::vector<std::vector<Vec3>>& directions,
                                       const TetAllowsLabel& allows, const SandwichOptions& opts) {
-  if (opts.max_rounds < 0)
-    throw Error(ErrorCode::InvalidOptions, "sandwich repair: max_rounds must be >= 0");
+  if (opts.max_rounds < 0 || opts.max_extra_parts < 0)
+    throw Error(ErrorCode::InvalidOptions,
+                "sandwich repair: max_rounds and max_extra_parts must be >= 0");
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
   if (tets.neighbors.size() != tets.tets.size() || label.size() != tets.tets.size() ||
       region.size() != tets.tets.size())
@@ -133,8 +134,14 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
 
   SandwichRepair repair;
   std::vector<char> moved(n, 0);
-  std::map<std::tuple<std::int32_t, std::int32_t, std::int32_t>, SandwichMove> moves;
   std::vector<std::int32_t> target(n, -1);  // label a tet moves to this round, -1: stays
+  // Moves can put other tets into other parts' infeasible volumes and split parts, so the
+  // labeling kept is the one of the round with the fewest sandwiched tets among those with at
+  // most max_extra_parts more parts than at the start (the start itself qualifies).
+  const std::vector<std::int32_t> initial = label;
+  std::vector<std::int32_t> best = label;
+  std::int32_t initial_parts = -1, best_sandwiched = -1;
+  SandwichRepair pieces;  // pieces merged so far
   for (std::int32_t round = 0;; ++round) {
     // --- 1. the parts as they are now: component, its (region, label), volume, first tet ---
     std::int32_t num_parts = 0;
@@ -223,12 +230,20 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
     // --- 3. move them all at once, so the outcome does not depend on the visiting order ---
     const std::int32_t found = static_cast<std::int32_t>(
         std::count_if(target.begin(), target.end(), [](std::int32_t l) { return l >= 0; }));
-    if (found == 0 || round == opts.max_rounds) {
+    const std::int32_t sandwiched =
+        found + static_cast<std::int32_t>(std::count(stuck.begin(), stuck.end(), char{1}));
+    if (round == 0) initial_parts = num_parts;
+    const bool few_enough = num_parts <= initial_parts + opts.max_extra_parts;
+    if (few_enough && (best_sandwiched < 0 || sandwiched < best_sandwiched)) {
+      best_sandwiched = sandwiched;
+      best = label;
+      repair.rounds = round;
       repair.converged = found == 0;
-      repair.stuck_tets = found + static_cast<std::int32_t>(
-                                      std::count(stuck.begin(), stuck.end(), char{1}));
-      break;
+      repair.stuck_tets = sandwiched;
+      repair.merged_pieces = pieces.merged_pieces;
+      repair.merged_tets = pieces.merged_tets;
     }
+    if (found == 0 || round == opts.max_rounds) break;
     const std::vector<std::int32_t> before = label;
     for (std::int32_t t = 0; t < n; ++t)
       if (target[t] >= 0) label[t] = target[t];
@@ -236,7 +251,7 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
     // --- 4. pieces the moves cut off ---
     // A part that lost tets may fall apart; a piece that no neighbour can take whole would be
     // a new part, so the moves out of that part are undone and its tets stay where they are.
-    merge_pieces(tets, label, region, volume, allows, num_parts, repair);
+    merge_pieces(tets, label, region, volume, allows, num_parts, pieces);
     std::int32_t now_parts = 0;
     std::vector<std::int32_t> now = detail::label_components(tets, label, region, now_parts);
     if (now_parts > num_parts) {
@@ -266,28 +281,26 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
         }
     }
 
-    // --- 5. what moved ---
-    std::int32_t changed = 0;
-    for (std::int32_t t = 0; t < n; ++t) {
-      if (before[t] == label[t]) continue;
-      SandwichMove& m = moves[{region[t], before[t], label[t]}];
-      m.region = region[t];
-      m.from_label = before[t];
-      m.to_label = label[t];
-      ++m.tets;
-      m.volume_mm3 += volume[t];
-      repair.moved_volume_mm3 += volume[t];
-      moved[t] = 1;
-      ++changed;
-    }
-    repair.moved_tets += changed;
-    if (changed == 0) {  // every move was undone
-      repair.converged = false;
-      repair.stuck_tets = found + static_cast<std::int32_t>(
-                                      std::count(stuck.begin(), stuck.end(), char{1}));
-      break;
-    }
-    ++repair.rounds;
+    // --- 5. a tet moves at most once, so two parts cannot trade it back and forth ---
+    bool changed = false;
+    for (std::int32_t t = 0; t < n; ++t)
+      if (before[t] != label[t]) moved[t] = 1, changed = true;
+    if (!changed) break;  // every move was undone
+  }
+
+  // --- 6. what moved, from the start to the labeling kept ---
+  label = best;
+  std::map<std::tuple<std::int32_t, std::int32_t, std::int32_t>, SandwichMove> moves;
+  for (std::int32_t t = 0; t < n; ++t) {
+    if (initial[t] == label[t]) continue;
+    SandwichMove& m = moves[{region[t], initial[t], label[t]}];
+    m.region = region[t];
+    m.from_label = initial[t];
+    m.to_label = label[t];
+    ++m.tets;
+    m.volume_mm3 += volume[t];
+    ++repair.moved_tets;
+    repair.moved_volume_mm3 += volume[t];
   }
   for (const auto& [key, m] : moves) repair.moves.push_back(m);
   return repair;
