@@ -142,6 +142,7 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
   std::vector<std::int32_t> best = label;
   std::int32_t initial_parts = -1, best_sandwiched = -1;
   SandwichRepair pieces;  // pieces merged so far
+  int over_budget = 0;    // consecutive rounds with too many parts
   for (std::int32_t round = 0;; ++round) {
     // --- 1. the parts as they are now: component, its (region, label), volume, first tet ---
     std::int32_t num_parts = 0;
@@ -243,7 +244,10 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
       repair.merged_pieces = pieces.merged_pieces;
       repair.merged_tets = pieces.merged_tets;
     }
-    if (found == 0 || round == opts.max_rounds) break;
+    // Pieces seldom join again once the parts outnumber the budget: two such rounds in a row
+    // end the search (the walks are the stage's cost).
+    over_budget = few_enough ? 0 : over_budget + 1;
+    if (found == 0 || round == opts.max_rounds || over_budget == 2) break;
     const std::vector<std::int32_t> before = label;
     for (std::int32_t t = 0; t < n; ++t)
       if (target[t] >= 0) label[t] = target[t];
