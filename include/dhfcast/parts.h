@@ -35,10 +35,73 @@ std::vector<Part> extract_parts(const TetMesh& tets, const std::vector<std::int3
                                 const std::vector<std::int32_t>& region,
                                 const std::vector<std::vector<Vec3>>& directions);
 
+// Options for absorb_sandwiched_tets().
+struct SandwichOptions {
+  std::int32_t max_rounds = 8;  // rounds of relabeling; each moves every sandwiched tet it finds
+  // Parts the repair may add (a part that loses tets can fall apart): a labeling with more
+  // parts than at the start plus this is never returned.
+  std::int32_t max_extra_parts = 1;
+};
+
+// Tets that absorb_sandwiched_tets() moved from one label to another, within one region.
+struct SandwichMove {
+  std::int32_t region = 0;
+  std::int32_t from_label = 0, to_label = 0;
+  std::int32_t tets = 0;
+  double volume_mm3 = 0.0;
+};
+
+// What absorb_sandwiched_tets() did.
+struct SandwichRepair {
+  std::int32_t rounds = 0;      // rounds that led to the labeling kept
+  bool converged = false;       // nothing left to move in the labeling kept
+  std::int32_t moved_tets = 0;  // tets whose label changed (pieces below included)
+  double moved_volume_mm3 = 0.0;
+  // Tets still sandwiched in the labeling kept: no sandwiching part's direction allows them,
+  // they moved once already (a tet moves at most once, so two parts cannot trade it back and
+  // forth), they do not touch the part, or the rounds ran out.
+  std::int32_t stuck_tets = 0;
+  // Pieces a part fell into when it lost tets, each moved whole into a neighbouring part whose
+  // direction allows all of it, and their tets. Where a piece fits no neighbour, the moves out
+  // of that part in that round are undone instead.
+  std::int32_t merged_pieces = 0, merged_tets = 0;
+  std::vector<SandwichMove> moves;  // summed by (region, from_label, to_label), in that order
+};
+
+// Whether tet `tet` may take label `label` of region `region` (its direction is DHF-accessible
+// there).
+using TetAllowsLabel =
+    std::function<bool(std::int32_t tet, std::int32_t region, std::int32_t label)>;
+
+// Makes the parts double height fields at the tet level (the label-level half of paper §4.3.1).
+// A part P (a face-connected component of equal (region, label), as in extract_parts()) is not
+// a DHF along its direction d where a line along d meets P, leaves it into another part and
+// meets P again inside the same stretch of solid: the tets in between lie in P's infeasible
+// volume. A tet T of another part whose barycentre's line along d, walked through the tet mesh
+// until it leaves the solid, meets P's tets both before and after T is given to P (P's label),
+// when `allows` says T may take it; the largest such P wins (ties: its smallest tet). Such a T
+// is in the same stretch of solid as points of P that are accessible along d, so it is usually
+// accessible too. Rounds repeat on the new components until none moves a tet or
+// opts.max_rounds is reached. Moves can sandwich other tets or split parts, so the labeling
+// returned is the one, among the start and the rounds' results, with the fewest sandwiched tets
+// and at most opts.max_extra_parts more parts than at the start. Only tets of the same region
+// are exchanged.
+// Deterministic: the result does not depend on the thread count.
+// Pre: tets has adjacency; label/region as for extract_parts(). Throws Error{InvalidOptions}
+// when max_rounds < 0 or max_extra_parts < 0, Error{Internal} on mismatched sizes.
+SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int32_t>& label,
+                                      const std::vector<std::int32_t>& region,
+                                      const std::vector<std::vector<Vec3>>& directions,
+                                      const TetAllowsLabel& allows,
+                                      const SandwichOptions& opts = {});
+
 // Options for smooth_interfaces().
 struct SmoothingOptions {
   std::int32_t iterations = 40;  // Taubin step pairs
   double step = 0.5;             // fraction of the way to the neighbours' average per step
+  // After each step, move interior interface vertices back out of the infeasible volumes of
+  // their parts that they started outside of (paper §4.3.1); see smooth_interfaces().
+  bool project = true;
 };
 
 // Whether `tet` may belong to part `part` (its direction is DHF-accessible there).
@@ -50,7 +113,11 @@ using TetAllowsPart = std::function<bool(std::int32_t tet, std::int32_t part)>;
 // surface's tangent plane, only inside the star of its tet vertex (the tets around it), and only
 // when every tet of that star allows both parts there, so the surface a part gains stays
 // DHF-accessible for its direction (the paper's tolerance region). Inside the solid a vertex
-// moves at most about one edge length. Where smoothing would fold a part's surface through
+// moves at most about one edge length. With opts.project, each step is followed by a damped
+// projection (paper §4.3.1): a part's infeasible volume is where lines along its direction enter
+// and leave the solid through its outer surface; an interior interface vertex that smoothing
+// carried into the infeasible volume of one of its parts moves back towards its start, or
+// across that part's direction where the seams moved the volume, until it is outside again. Where smoothing would fold a part's surface through
 // itself or collapse a part, those vertices and their neighbours keep their place. Vertices
 // shared by parts move identically in all of them, so interfaces stay shared exactly.
 // Pre: `parts` is extract_parts(tets, ...).

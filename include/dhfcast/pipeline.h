@@ -21,6 +21,7 @@ struct DecomposeOptions {
   std::int32_t directions = 512;  // number of candidate directions
   AccessibilityOptions access;
   SegmentOptions segment;
+  SandwichOptions sandwich;
   SmoothingOptions smoothing;
   bool make_molds = true;  // build each part's two-piece mold (molds.epsilon_mm is taken from
                            // access.epsilon_mm)
@@ -48,6 +49,7 @@ struct Decomposition {
   AccessibilityField access;         // of the whole solid
   Labeling labeling;                 // of the whole solid (label -1: inaccessible)
   std::vector<InaccessibleRegion> inaccessible_regions;
+  SandwichRepair sandwich;  // tets moved into the part they were sandwiched in (label level)
   std::vector<Part> parts;
   // Normal angles across each interface before and after smoothing, and over the outer surface
   // at the same resolution.

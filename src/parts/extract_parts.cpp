@@ -10,6 +10,7 @@
 
 #include "dhfcast/error.h"
 #include "dhfcast/parts.h"
+#include "components.h"
 
 namespace dhfcast {
 namespace {
@@ -54,34 +55,6 @@ struct BoundaryFace {
   std::array<std::int32_t, 3> v;  // tet-mesh vertex indices, counter-clockwise seen from outside
   std::int32_t neighbor_part;     // part across the face, -1 on the solid's outer surface
 };
-
-// Splits the tets into face-connected components of equal (region, label). Components are
-// numbered by their smallest tet.
-std::vector<std::int32_t> label_components(const TetMesh& tets,
-                                           const std::vector<std::int32_t>& label,
-                                           const std::vector<std::int32_t>& region,
-                                           std::int32_t& num_components) {
-  const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
-  std::vector<std::int32_t> component(n, -1);
-  std::vector<std::int32_t> stack;
-  num_components = 0;
-  for (std::int32_t seed = 0; seed < n; ++seed) {
-    if (component[seed] >= 0) continue;
-    component[seed] = num_components;
-    stack.assign(1, seed);
-    while (!stack.empty()) {
-      const std::int32_t t = stack.back();
-      stack.pop_back();
-      for (const std::int32_t u : tets.neighbors[t]) {
-        if (u < 0 || component[u] >= 0 || label[u] != label[t] || region[u] != region[t]) continue;
-        component[u] = num_components;
-        stack.push_back(u);
-      }
-    }
-    ++num_components;
-  }
-  return component;
-}
 
 // Builds the boundary of one part (`part_tets` ascending, all with part_of == p) as a closed,
 // 2-manifold, outward mesh, and the part across each of its triangles.
@@ -244,7 +217,7 @@ std::vector<Part> extract_parts(const TetMesh& tets, const std::vector<std::int3
 
   // --- 1. components, sorted by decreasing volume, ties by smallest tet ---
   std::int32_t num_parts = 0;
-  const std::vector<std::int32_t> component = label_components(tets, label, region, num_parts);
+  const std::vector<std::int32_t> component = detail::label_components(tets, label, region, num_parts);
   std::vector<std::vector<std::int32_t>> members(num_parts);
   for (std::int32_t t = 0; t < static_cast<std::int32_t>(n); ++t)
     members[component[t]].push_back(t);

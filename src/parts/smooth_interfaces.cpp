@@ -16,6 +16,7 @@
 #include "dhfcast/error.h"
 #include "dhfcast/mesh.h"
 #include "dhfcast/parts.h"
+#include "outer_columns.h"
 
 namespace dhfcast {
 namespace {
@@ -240,10 +241,46 @@ void smooth_interfaces(const TetMesh& tets, std::vector<Part>& parts, const TetA
     if (!(reach[v] > 0.0) || !outer_normal[v].allFinite()) kind[v] = Kind::Fixed;
   });
 
-  // --- 5. Taubin steps (a shrinking step, then an inflating one), clamped to each reach ---
+  // --- 5. each part's infeasible volume (paper §4.3.1) ---
+  // A line along a part's direction that enters and leaves the solid through that part's outer
+  // surface must stay in the part all the way: an interface point of the part on such a line
+  // means the line leaves the part and comes back. Only the outer surface decides; seams slide
+  // in it while smoothing, so the columns are rebuilt from the current positions when used.
+  std::vector<std::int32_t> column_of(num_parts, -1);
+  std::vector<Vec3> column_direction;
+  for (std::int32_t p = 0; p < num_parts; ++p) {
+    const Vec3& d = parts[p].direction;
+    const auto it = std::find(column_direction.begin(), column_direction.end(), d);
+    column_of[p] = static_cast<std::int32_t>(it - column_direction.begin());
+    if (it == column_direction.end()) column_direction.push_back(d);
+  }
+  std::vector<Tri> outer;
+  std::vector<std::int32_t> owner;
+  for (const Face& f : faces)
+    if (f.b < 0) {
+      outer.push_back(f.v);
+      owner.push_back(f.a);
+    }
+  std::vector<detail::OuterColumns> columns;
+  auto build_columns = [&] {
+    columns.clear();
+    for (const Vec3& d : column_direction)
+      columns.emplace_back(position, outer, owner, d.normalized());
+  };
+  auto infeasible_for = [&](std::int32_t p, const Vec3& x) {
+    const auto [up, down] = columns[column_of[p]].ends(x);
+    return up == p && down == p;
+  };
+
+  // --- 6. Taubin steps (a shrinking step, then an inflating one), clamped to each reach ---
   // Plain Laplacian steps would shrink small parts to nothing; Taubin's pairs keep volume.
   const std::vector<Vec3> start = position;
   std::vector<Vec3> next = position;
+  auto clamp_to_reach = [&](std::int32_t v, const Vec3& x) {
+    Vec3 moved = x - start[v];
+    if (moved.norm() > reach[v]) moved *= reach[v] / moved.norm();
+    return Vec3(start[v] + moved);
+  };
   auto relax = [&](double step) {
     tbb::parallel_for(std::int32_t{0}, num_vertices, [&](std::int32_t v) {
       if (kind[v] == Kind::Fixed) return;
@@ -256,23 +293,90 @@ void smooth_interfaces(const TetMesh& tets, std::vector<Part>& parts, const TetA
         const Vec3& n = outer_normal[v];
         x -= n * n.dot(x - start[v]);
       }
-      Vec3 moved = x - start[v];
-      if (moved.norm() > reach[v]) moved *= reach[v] / moved.norm();
-      next[v] = start[v] + moved;
+      next[v] = clamp_to_reach(v, x);
     });
     std::swap(position, next);
   };
+  // Damped projection out of the infeasible volumes: an interior interface vertex that
+  // smoothing carried into the infeasible volume of one of its parts (one it started outside
+  // of) moves back towards where it started, to the nearest place on that way outside them
+  // (bisection). Seams slide too, so the volumes move: where the start is inside one now, the
+  // vertex moves across that part's direction instead, the way the part's outward normal
+  // points (the part grows into its neighbour), as far as its reach allows. Volumes a vertex
+  // started inside are left to the label level.
+  build_columns();
+  std::vector<std::array<std::int32_t, 3>> watch(num_vertices, {-1, -1, -1});
+  for (std::int32_t v = 0; v < num_vertices; ++v) {
+    int k = 0;
+    for (std::int32_t p : parts_at[v])
+      if (k < 3 && !infeasible_for(p, start[v])) watch[v][k++] = p;
+  }
+  std::vector<std::vector<std::int32_t>> faces_at(num_vertices);
+  for (std::int32_t f = 0; f < static_cast<std::int32_t>(faces.size()); ++f)
+    for (std::int32_t v : faces[f].v) faces_at[v].push_back(f);
+  constexpr int kMarch = 8, kBisect = 8;
+  auto project = [&](double damping) {
+    build_columns();
+    tbb::parallel_for(std::int32_t{0}, num_vertices, [&](std::int32_t v) {
+      next[v] = position[v];
+      if (kind[v] != Kind::Surface && kind[v] != Kind::Curve) return;
+      const Vec3 x = position[v];
+      std::int32_t violated = -1;
+      auto clear = [&](const Vec3& y) {
+        for (std::int32_t p : watch[v])
+          if (p >= 0 && infeasible_for(p, y)) {
+            violated = p;
+            return false;
+          }
+        return true;
+      };
+      if (clear(x)) return;
+      const std::int32_t first = violated;
+      Vec3 from = start[v], way = x - start[v];  // search from + s * way, s in [0, 1]
+      if (!clear(start[v])) {
+        Vec3 n = Vec3::Zero();
+        for (std::int32_t f : faces_at[v]) {
+          const Vec3 area = triangle_normal(position, faces[f].v);
+          if (faces[f].a == first) n += area;
+          if (faces[f].b == first) n -= area;
+        }
+        const Vec3 d = parts[first].direction.normalized();
+        Vec3 h = n - d * d.dot(n);
+        if (!(h.norm() > 0.2 * n.norm())) return;  // faces along d: no way out sideways
+        h *= reach[v] / h.norm();
+        double hi = -1.0;
+        for (int k = 1; k <= kMarch && hi < 0; ++k)
+          if (clear(x + (double(k) / kMarch) * h)) hi = double(k) / kMarch;
+        if (hi < 0) return;
+        from = x + hi * h;  // clear
+        way = x - from;
+      }
+      double lo = 0.0, hi = 1.0;  // from + lo * way is clear, from + hi * way is not
+      for (int k = 0; k < kBisect; ++k) {
+        const double mid = 0.5 * (lo + hi);
+        (clear(from + mid * way) ? lo : hi) = mid;
+      }
+      next[v] = clamp_to_reach(v, x + damping * (from + lo * way - x));
+    });
+    std::swap(position, next);
+  };
+  constexpr int kFinalProjections = 3;
+
   auto run = [&] {
     position = start;
     next = start;
     for (std::int32_t iter = 0; iter < opts.iterations; ++iter) {
       relax(opts.step);
       relax(-1.06 * opts.step);
+      if (opts.project) project(0.5);
     }
+    // Undamped at the end, a few times, as each vertex's move changes its neighbours' normals.
+    for (int k = 0; k < kFinalProjections && opts.project && opts.iterations > 0; ++k)
+      project(1.0);
   };
   run();
 
-  // --- 6. where smoothing folds a surface through another, or collapses a part, undo it ---
+  // --- 7. where smoothing folds a surface through another, or collapses a part, undo it ---
   // A part a few tets thick can lose most of its volume, and a thin slab's interfaces can cross
   // each other or the outer surface. Those vertices (and their neighbours) stay where they
   // were, and the rest is smoothed again around them, until no part intersects itself.
@@ -318,7 +422,7 @@ void smooth_interfaces(const TetMesh& tets, std::vector<Part>& parts, const TetA
     run();
   }
 
-  // --- 7. every part takes the shared positions ---
+  // --- 8. every part takes the shared positions ---
   tbb::parallel_for(std::int32_t{0}, num_parts, [&](std::int32_t p) {
     for (std::size_t i = 0; i < parts[p].mesh.vertices.size(); ++i)
       parts[p].mesh.vertices[i] = position[global_of[p][i]];

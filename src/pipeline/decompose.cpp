@@ -111,6 +111,8 @@ void validate_options(const DecomposeOptions& o) {
   require(std::isfinite(o.segment.lambda) && o.segment.lambda >= 0, "--lambda must be >= 0");
   require(o.smoothing.iterations >= 0 && o.smoothing.iterations <= 10000,
           "--smoothing must be between 0 and 10000");
+  require(o.sandwich.max_rounds >= 0 && o.sandwich.max_extra_parts >= 0,
+          "sandwich max_rounds and max_extra_parts must be >= 0");
   require(o.segment.restarts >= 1 && o.segment.restarts <= 1000,
           "--restarts must be between 1 and 1000");
   if (o.make_molds) validate_mold_options(o.molds);
@@ -185,6 +187,15 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   report("parts", 0.0);
   if (std::find(label.begin(), label.end(), -1) != label.end())
     throw Error(ErrorCode::Internal, "a tet region has no direction at all");
+  // Tets between two pieces of another part along its direction go to that part, so each part
+  // meets every line along its direction once (at the tets' resolution). Regions decomposed
+  // again keep no accessibility of their own here, so their tets never change label.
+  d.sandwich = absorb_sandwiched_tets(
+      d.tets, label, region, region_directions,
+      [&](std::int32_t t, std::int32_t r, std::int32_t l) {
+        return r == 0 && d.access.feasible.get(t, l);
+      },
+      opts.sandwich);
   d.parts = extract_parts(d.tets, label, region, region_directions);
   // Parts of a region decomposed again carry that region's own accessibility, which is not kept:
   // their interfaces stay as they are.

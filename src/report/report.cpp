@@ -142,6 +142,22 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                        {"still_inaccessible_tets", r.still_inaccessible_tets}});
   j["inaccessible_regions"] = regions;
 
+  ordered_json moves = ordered_json::array();
+  for (const SandwichMove& m : d.sandwich.moves)
+    moves.push_back({{"region", m.region},
+                     {"from_direction", m.from_label},
+                     {"to_direction", m.to_label},
+                     {"tets", m.tets},
+                     {"volume_mm3", m.volume_mm3}});
+  j["sandwich_repair"] = {{"rounds", d.sandwich.rounds},
+                          {"converged", d.sandwich.converged},
+                          {"moved_tets", d.sandwich.moved_tets},
+                          {"moved_volume_mm3", d.sandwich.moved_volume_mm3},
+                          {"stuck_tets", d.sandwich.stuck_tets},
+                          {"merged_pieces", d.sandwich.merged_pieces},
+                          {"merged_tets", d.sandwich.merged_tets},
+                          {"moves", moves}};
+
   // Normal angles between neighbouring interface triangles, before and after smoothing.
   auto smoothness = [](const InterfaceSmoothness& s) {
     return ordered_json{{"triangles", s.triangles},
