@@ -40,7 +40,9 @@ built = sum(1 for p in parts if "up" in p.get("molds", {}))
 print(len(parts), built, round(j.get("timings_s", {}).get("molds", 0.0), 1))
 PY
 )
-  verdict="$("$build/dhfcast" check "$out" | awk '$2 == "molds" {print $1}')"
+  line="$("$build/dhfcast" check "$out" | grep -m1 '^[A-Z]* *molds ')"
+  verdict="${line%% *}"
   print="$("$here/tests/print_check.sh" "$out" --slice first | tail -1 | sed 's/print_check: //')"
   printf '%-15s %5s %6s %8s %-6s %s\n' "$m" "$parts" "$built" "$secs" "$verdict" "$print"
+  printf '%-15s %s\n' "" "${line:0:160}"
 done

@@ -209,18 +209,20 @@ TriMesh from_exact(const ExactMesh& m) {
   return out;
 }
 
-// a := a op b, exactly; b is checked for self-intersections where it meets a.
+// a := a op b, exactly; both are checked for self-intersections where they meet.
 void exact_boolean(ExactMesh& a, ExactMesh b, BooleanOp op, const std::string& what) {
   ExactMesh out;
   bool ok = false;
   try {
+    // Both operands: with exact constructions a result of an earlier step is as valid as its
+    // operands were, so a report here is the part's own (or a touching contact it makes).
     const auto checked = CGAL::parameters::throw_on_self_intersection(true);
-    const auto unchecked = CGAL::parameters::throw_on_self_intersection(false);
-    ok = op == BooleanOp::Union
-             ? PMP::corefine_and_compute_union(a, b, out, unchecked, checked)
-             : PMP::corefine_and_compute_difference(a, b, out, unchecked, checked);
+    ok = op == BooleanOp::Union ? PMP::corefine_and_compute_union(a, b, out, checked, checked)
+                                : PMP::corefine_and_compute_difference(a, b, out, checked, checked);
   } catch (const PMP::Corefinement::Self_intersection_exception&) {
-    throw Error(ErrorCode::BooleanFailed, what + ": the part intersects or touches itself there");
+    throw Error(ErrorCode::BooleanFailed,
+                what + ": an operand intersects or touches itself (the part, or where it meets "
+                       "the parting surface)");
   }
   if (!ok) throw Error(ErrorCode::BooleanFailed, what + ": the boolean operation failed");
   a = std::move(out);

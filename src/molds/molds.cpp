@@ -514,6 +514,10 @@ std::vector<Mold> build_molds(const std::vector<Part>& parts, const MoldOptions&
       molds[i] = Mold{};
       molds[i].part = parts[i].id;
       molds[i].error = e.what();
+    } catch (const std::exception& e) {  // a CGAL precondition: this part's mold only
+      molds[i] = Mold{};
+      molds[i].part = parts[i].id;
+      molds[i].error = "part " + std::to_string(parts[i].id) + ": geometry kernel: " + e.what();
     }
   });
   return molds;

@@ -75,8 +75,8 @@ struct CarveStep {
 
 // block op1 mesh1 op2 mesh2 ..., with exact constructions throughout (results of inexact
 // booleans, fed to the next one, can intersect themselves), converted to double at the end.
-// Each step's mesh is checked for self-intersections where it meets the result so far; throws
-// Error{BooleanFailed} naming the step.
+// Each step's operands are checked for self-intersections where they meet (CGAL would crash
+// or give garbage); throws Error{BooleanFailed} naming the step.
 TriMesh carve(const TriMesh& block, const std::vector<CarveStep>& steps);
 
 // Rounds every vertex to float (as an STL stores it), then removes the degenerate faces that
