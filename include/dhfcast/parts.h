@@ -142,18 +142,6 @@ std::vector<InterfaceSmoothness> interface_smoothness(const std::vector<Part>& p
 // surface itself has at the same mesh resolution. p95 in deg; mean in mean_angle_deg.
 InterfaceSmoothness outer_surface_smoothness(const std::vector<Part>& parts);
 
-// Makes each part's outer surface the input surface itself (DESIGN.md: the tet mesh only decides
-// who owns which region; the parts are cut from the exact input solid). Each part becomes
-// `solid` intersected with its region: the part's mesh with its outer triangles
-// (triangle_neighbor == -1), which only approximate the input surface, pushed outward past it.
-// Interfaces between parts are clipped where they leave the solid and stay the same surface
-// on both sides (same vertices and triangles, opposite orientation), so the parts fit exactly.
-// Updates mesh, triangle_neighbor and volume_mm3 of every part.
-// Pre: the parts' meshes tile the solid's volume up to `tolerance_mm` (largest distance from their
-// outer triangles to `solid`), and a vertex shared by two parts has the same coordinates in both.
-// Throws Error{Internal} when a boolean operation fails, naming the part.
-void cut_from_solid(const TriMesh& solid, std::vector<Part>& parts, double tolerance_mm);
-
 // How the parts go together.
 struct AssemblyPlan {
   bool found = false;  // an order exists in which no part collides with those placed before it
