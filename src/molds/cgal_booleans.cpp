@@ -45,24 +45,29 @@ std::optional<M> to_surface_mesh(const TriMesh& m) {
 
 std::optional<Mesh> to_cgal(const TriMesh& m) { return to_surface_mesh<Mesh>(m); }
 
-TriMesh from_cgal(const Mesh& m) {
+// The triangles of a CGAL surface mesh; `to_vec` turns its points into doubles.
+template <typename M, typename ToVec>
+TriMesh from_surface_mesh(const M& m, ToVec to_vec) {
   TriMesh out;
-  std::map<Mesh::Vertex_index, std::int32_t> index;
-  for (Mesh::Vertex_index v : m.vertices()) {
+  std::map<typename M::Vertex_index, std::int32_t> index;
+  for (typename M::Vertex_index v : m.vertices()) {
     index[v] = static_cast<std::int32_t>(out.vertices.size());
-    const K::Point_3& p = m.point(v);
-    out.vertices.emplace_back(p.x(), p.y(), p.z());
+    out.vertices.push_back(to_vec(m.point(v)));
   }
-  for (Mesh::Face_index f : m.faces()) {
+  for (typename M::Face_index f : m.faces()) {
     Tri t{};
     int k = 0;
-    for (Mesh::Vertex_index v : CGAL::vertices_around_face(m.halfedge(f), m)) {
+    for (typename M::Vertex_index v : CGAL::vertices_around_face(m.halfedge(f), m)) {
       if (k < 3) t[k] = index[v];
       ++k;
     }
     if (k == 3) out.triangles.push_back(t);
   }
   return out;
+}
+
+TriMesh from_cgal(const Mesh& m) {
+  return from_surface_mesh(m, [](const K::Point_3& p) { return Vec3(p.x(), p.y(), p.z()); });
 }
 
 }  // namespace
@@ -188,25 +193,12 @@ ExactMesh to_exact(const TriMesh& m, const std::string& what) {
 }
 
 TriMesh from_exact(const ExactMesh& m) {
-  TriMesh out;
-  std::map<ExactMesh::Vertex_index, std::int32_t> index;
-  for (ExactMesh::Vertex_index v : m.vertices()) {
-    index[v] = static_cast<std::int32_t>(out.vertices.size());
-    const EK::Point_3& p = m.point(v);
-    // From the exact value: the lazy approximation depends on what was evaluated before (and
-    // on which thread), the exact value does not.
-    out.vertices.emplace_back(CGAL::to_double(CGAL::exact(p.x())),
-                              CGAL::to_double(CGAL::exact(p.y())),
-                              CGAL::to_double(CGAL::exact(p.z())));
-  }
-  for (ExactMesh::Face_index f : m.faces()) {
-    Tri t{};
-    int k = 0;
-    for (ExactMesh::Vertex_index v : CGAL::vertices_around_face(m.halfedge(f), m))
-      if (k < 3) t[k++] = index[v];
-    out.triangles.push_back(t);
-  }
-  return out;
+  // From the exact value: the lazy approximation depends on what was evaluated before (and
+  // on which thread), the exact value does not.
+  return from_surface_mesh(m, [](const EK::Point_3& p) {
+    return Vec3(CGAL::to_double(CGAL::exact(p.x())), CGAL::to_double(CGAL::exact(p.y())),
+                CGAL::to_double(CGAL::exact(p.z())));
+  });
 }
 
 // a := a op b, exactly; both are checked for self-intersections where they meet.
