@@ -486,6 +486,124 @@ TEST(AbsorbSandwichedTets, ScrambledLabelsEndWithoutSandwichesOnAnyThreadCount) 
   EXPECT_EQ(repair_one.moved_tets, repair.moved_tets);
 }
 
+// --- parts that touch themselves ---
+
+// Positions where some part's mesh has two vertices: where extract_parts() cut a part apart
+// because it touches itself there.
+std::vector<std::pair<std::int32_t, Vec3>> self_contacts(const std::vector<Part>& parts) {
+  std::vector<std::pair<std::int32_t, Vec3>> out;
+  for (const Part& p : parts) {
+    std::set<std::array<double, 3>> at;
+    for (const Vec3& x : p.mesh.vertices)
+      if (!at.insert({x.x(), x.y(), x.z()}).second) out.emplace_back(p.id, x);
+  }
+  return out;
+}
+
+// Repairs `label` on the grid and checks the outcome: no part touches itself, none is added, and
+// the parts are valid. Returns the repair.
+ManifoldRepair expect_repaired(const Grid& g, std::vector<std::int32_t>& label,
+                               const TetAllowsLabel& allows, std::size_t num_directions) {
+  const std::vector<std::vector<Vec3>> dirs{std::vector<Vec3>(num_directions, kZ)};
+  const std::size_t before = extract_parts(g.mesh, label, zeros(g), dirs).size();
+  const ManifoldRepair repair = make_parts_manifold(g.mesh, label, zeros(g), allows);
+  EXPECT_EQ(repair.nonmanifold_vertices, 0);
+  const std::vector<Part> parts = extract_parts(g.mesh, label, zeros(g), dirs);
+  EXPECT_LE(parts.size(), before);
+  expect_valid_parts(g, parts);
+  for (const auto& [part, x] : self_contacts(parts))
+    ADD_FAILURE() << "part " << part << " touches itself at " << x.transpose();
+  return repair;
+}
+
+TEST(MakePartsManifold, PartTouchingItselfAlongAnEdgeNoLongerDoes) {
+  // The ring of ExtractParts.PartTouchingItselfAlongAnEdgeIsManifold: label 0 meets itself
+  // along the edge x = z = 2, between the two cubes of label 1 that share that edge.
+  const Grid g = make_grid(4, 1, 4, 1.0);
+  auto label = per_cell(g, [](const Cell& c) {
+    const int x = c[0], z = c[2];
+    if ((x == 2 && z == 1) || (x == 1 && z == 2)) return 1;
+    return (x == 3 || z == 0) ? 2 : 0;
+  });
+  ASSERT_FALSE(self_contacts(extract_parts(g.mesh, label, zeros(g), {{kZ, kZ, kZ}})).empty());
+  const ManifoldRepair repair = expect_repaired(g, label, kAllowAll, 3);
+  // One cube around the edge changes hands at most.
+  EXPECT_GT(repair.moved_tets, 0);
+  EXPECT_LE(repair.moved_tets, 6);
+  EXPECT_EQ(repair.infeasible_tets, 0);
+}
+
+TEST(MakePartsManifold, PartTouchingItselfAtAVertexNoLongerDoesAndAllowedMovesWin) {
+  // As in ExtractParts.PartTouchingItselfAtAVertexIsManifold, a ring of six cubes (label 1)
+  // pinched at the block's centre, where two opposite corner cubes touch; here they have labels
+  // 0 and 2.
+  const Grid g = make_grid(2, 2, 2, 1.0);
+  const auto start = per_cell(g, [](const Cell& c) {
+    return (c[0] == c[1] && c[1] == c[2]) ? 2 * c[0] : 1;
+  });
+  ASSERT_FALSE(self_contacts(extract_parts(g.mesh, start, zeros(g), {{kZ, kZ, kZ}})).empty());
+  // Tets of the ring join a corner through the ring (the fewest that do): whichever corner's
+  // label the direction allows.
+  for (const std::int32_t allowed : {0, 2}) {
+    SCOPED_TRACE("allowed label " + std::to_string(allowed));
+    auto label = start;
+    const ManifoldRepair repair = expect_repaired(
+        g, label, [&](std::int32_t, std::int32_t, std::int32_t l) { return l == allowed; }, 3);
+    EXPECT_GT(repair.moved_tets, 0);
+    EXPECT_LE(repair.moved_tets, 6);
+    EXPECT_EQ(repair.infeasible_tets, 0);
+    for (std::size_t t = 0; t < label.size(); ++t)
+      EXPECT_TRUE(label[t] == start[t] || label[t] == allowed) << "tet " << t;
+  }
+}
+
+TEST(MakePartsManifold, ScrambledCellsEndManifoldOnAnyThreadCount) {
+  const Grid g = make_grid(6, 6, 6, 2.0);
+  const auto cells = scrambled_labels(216, 3, 5);
+  const auto start = per_cell(g, [&](const Cell& c) { return cells[(c[2] * 6 + c[1]) * 6 + c[0]]; });
+  ASSERT_FALSE(self_contacts(extract_parts(g.mesh, start, zeros(g), {{kZ, kZ, kZ}})).empty());
+  auto label = start;
+  const ManifoldRepair repair = expect_repaired(g, label, kAllowAll, 3);
+  EXPECT_GT(repair.moved_tets, 0);
+  // Far fewer tets move than there are.
+  EXPECT_LT(repair.moved_tets, static_cast<std::int32_t>(label.size()) / 5);
+  tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+  auto again = start;
+  make_parts_manifold(g.mesh, again, zeros(g), kAllowAll);
+  EXPECT_EQ(again, label);
+}
+
+// A real tet mesh (CGAL's elephant) labeled by 3D blocks with pseudo-random labels: blocks of
+// one label meet along edges and at vertices all over the solid, at the mesher's irregular tets.
+TEST(MakePartsManifold, BlocksOfTheElephantGiveManifoldParts) {
+  const std::string path = test::cgal_mesh("elephant.off");
+  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
+  TetOptions topts;
+  topts.target_tets = 12000;
+  const TetMesh tets = tetrahedralize(test::load_scaled(path, 150.0), topts);
+  const Box3 box = bounding_box(tets.vertices);
+  const auto blocks = scrambled_labels(64 * 64 * 64, 3, 17);
+  std::vector<std::int32_t> label(tets.tets.size());
+  for (std::size_t t = 0; t < tets.tets.size(); ++t) {
+    Vec3 c = Vec3::Zero();
+    for (std::int32_t v : tets.tets[t]) c += 0.25 * tets.vertices[v];
+    const Eigen::Vector3i b = ((c - box.min) / 15.0).cast<int>();
+    label[t] = blocks[(b.z() * 64 + b.y()) * 64 + b.x()];
+  }
+  const std::vector<std::int32_t> region(label.size(), 0);
+  const std::vector<std::vector<Vec3>> dirs{{kX, kY, kZ}};
+  const std::vector<Part> raw = extract_parts(tets, label, region, dirs);
+  ASSERT_FALSE(self_contacts(raw).empty());
+  const ManifoldRepair repair = make_parts_manifold(tets, label, region, kAllowAll);
+  EXPECT_EQ(repair.nonmanifold_vertices, 0);
+  EXPECT_LT(repair.moved_tets, static_cast<std::int32_t>(label.size()) / 20);
+  const std::vector<Part> parts = extract_parts(tets, label, region, dirs);
+  EXPECT_LE(parts.size(), raw.size());
+  for (const auto& [part, x] : self_contacts(parts))
+    ADD_FAILURE() << "part " << part << " touches itself at " << x.transpose();
+  for (const Part& p : parts) EXPECT_EQ(test::solid_topology_problem(p.mesh), "") << p.id;
+}
+
 // --- assembly ---
 
 // Parts of a grid labeled per cell, with one direction per label.

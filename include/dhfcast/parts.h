@@ -95,6 +95,34 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
                                       const TetAllowsLabel& allows,
                                       const SandwichOptions& opts = {});
 
+// What make_parts_manifold() did.
+struct ManifoldRepair {
+  std::int32_t rounds = 0;      // passes over the vertices that needed a fix
+  std::int32_t moved_tets = 0;  // tets whose label changed
+  double moved_volume_mm3 = 0.0;
+  std::int32_t infeasible_tets = 0;  // of those, tets whose new label `allows` did not allow
+  std::int32_t nonmanifold_vertices = 0;  // tet vertices still non-manifold for some part
+};
+
+// Changes the labels of a few tets so that every part (a face-connected component of equal
+// (region, label), as in extract_parts()) has a 2-manifold boundary: around each tet vertex, a
+// part's tets there are connected through faces that contain the vertex, and so are the other
+// tets there together with the outside of the solid. A part whose tets meet only along an edge
+// or at a vertex then no longer touches itself there (extract_parts() would duplicate the
+// vertex, and exact booleans reject such surfaces). Each fix is the move around a bad vertex
+// that lowers the number of such defects around the tets it moves: one tet, a group of a
+// part's tets there, or the fewest tets that join two groups, given to a part across one of
+// their faces. Moves that `allows` accepts for every tet come first, then the larger gain, then
+// the smaller volume moved. A move never splits a part, makes a new one or merges two parts of
+// one label, so the parts never grow in number. Rounds repeat over the vertices still bad until
+// none is left, no move helps, or max_rounds is reached. Only tets of the same region are
+// exchanged. Deterministic: the result does not depend on the thread count.
+// Pre: tets has adjacency; label/region as for extract_parts(). Throws Error{InvalidOptions}
+// when max_rounds < 0, Error{Internal} on mismatched sizes.
+ManifoldRepair make_parts_manifold(const TetMesh& tets, std::vector<std::int32_t>& label,
+                                   const std::vector<std::int32_t>& region,
+                                   const TetAllowsLabel& allows, std::int32_t max_rounds = 8);
+
 // Options for smooth_interfaces().
 struct SmoothingOptions {
   std::int32_t iterations = 40;  // Taubin step pairs

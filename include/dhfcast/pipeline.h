@@ -50,6 +50,7 @@ struct Decomposition {
   Labeling labeling;                 // of the whole solid (label -1: inaccessible)
   std::vector<InaccessibleRegion> inaccessible_regions;
   SandwichRepair sandwich;  // tets moved into the part they were sandwiched in (label level)
+  ManifoldRepair manifold;  // tets moved so that no part touches itself (label level)
   std::vector<Part> parts;
   // Normal angles across each interface before and after smoothing, and over the outer surface
   // at the same resolution.
