@@ -526,11 +526,17 @@ TEST(MakePartsManifold, PartTouchingItselfAlongAnEdgeNoLongerDoes) {
     return (x == 3 || z == 0) ? 2 : 0;
   });
   ASSERT_FALSE(self_contacts(extract_parts(g.mesh, label, zeros(g), {{kZ, kZ, kZ}})).empty());
+  // Where no direction allows a move, nothing moves, and the place is counted.
+  auto stuck = label;
+  const ManifoldRepair none = make_parts_manifold(
+      g.mesh, stuck, zeros(g), [](std::int32_t, std::int32_t, std::int32_t) { return false; });
+  EXPECT_EQ(stuck, label);
+  EXPECT_EQ(none.moved_tets, 0);
+  EXPECT_GT(none.nonmanifold_vertices, 0);
   const ManifoldRepair repair = expect_repaired(g, label, kAllowAll, 3);
   // One cube around the edge changes hands at most.
   EXPECT_GT(repair.moved_tets, 0);
   EXPECT_LE(repair.moved_tets, 6);
-  EXPECT_EQ(repair.infeasible_tets, 0);
 }
 
 TEST(MakePartsManifold, PartTouchingItselfAtAVertexNoLongerDoesAndAllowedMovesWin) {
@@ -551,7 +557,6 @@ TEST(MakePartsManifold, PartTouchingItselfAtAVertexNoLongerDoesAndAllowedMovesWi
         g, label, [&](std::int32_t, std::int32_t, std::int32_t l) { return l == allowed; }, 3);
     EXPECT_GT(repair.moved_tets, 0);
     EXPECT_LE(repair.moved_tets, 6);
-    EXPECT_EQ(repair.infeasible_tets, 0);
     for (std::size_t t = 0; t < label.size(); ++t)
       EXPECT_TRUE(label[t] == start[t] || label[t] == allowed) << "tet " << t;
   }
@@ -560,7 +565,8 @@ TEST(MakePartsManifold, PartTouchingItselfAtAVertexNoLongerDoesAndAllowedMovesWi
 TEST(MakePartsManifold, ScrambledCellsEndManifoldOnAnyThreadCount) {
   const Grid g = make_grid(6, 6, 6, 2.0);
   const auto cells = scrambled_labels(216, 3, 5);
-  const auto start = per_cell(g, [&](const Cell& c) { return cells[(c[2] * 6 + c[1]) * 6 + c[0]]; });
+  const auto start =
+      per_cell(g, [&](const Cell& c) { return cells[(c[2] * 6 + c[1]) * 6 + c[0]]; });
   ASSERT_FALSE(self_contacts(extract_parts(g.mesh, start, zeros(g), {{kZ, kZ, kZ}})).empty());
   auto label = start;
   const ManifoldRepair repair = expect_repaired(g, label, kAllowAll, 3);
@@ -1090,12 +1096,13 @@ TEST(SmoothInterfaces, SectorsOfTheElephantBecomeSmoothAndStayShared) {
   double volume = 0.0;
   for (const Part& p : parts) {
     EXPECT_EQ(test::solid_topology_problem(p.mesh), "") << "part " << p.id;
-    // Triangles may only meet where the part touches itself at a point (a duplicated vertex).
+    // Triangles may only meet where the part touches itself at a point (a duplicated vertex);
+    // two that share a vertex and cross beyond it are a fold.
     for (const auto& pair : intersecting_triangles(p.mesh, 1000)) {
       bool contact = false;
       for (std::int32_t a : p.mesh.triangles[pair[0]])
         for (std::int32_t b : p.mesh.triangles[pair[1]])
-          contact |= p.mesh.vertices[a] == p.mesh.vertices[b];
+          contact |= a != b && p.mesh.vertices[a] == p.mesh.vertices[b];
       EXPECT_TRUE(contact) << "part " << p.id << ": triangles " << pair[0] << ", " << pair[1];
     }
     EXPECT_NEAR(signed_volume(p.mesh), p.volume_mm3, 1e-9 * raw_volume);

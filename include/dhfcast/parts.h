@@ -100,7 +100,6 @@ struct ManifoldRepair {
   std::int32_t rounds = 0;      // passes over the vertices that needed a fix
   std::int32_t moved_tets = 0;  // tets whose label changed
   double moved_volume_mm3 = 0.0;
-  std::int32_t infeasible_tets = 0;  // of those, tets whose new label `allows` did not allow
   std::int32_t nonmanifold_vertices = 0;  // tet vertices still non-manifold for some part
 };
 
@@ -110,11 +109,11 @@ struct ManifoldRepair {
 // tets there together with the outside of the solid. A part whose tets meet only along an edge
 // or at a vertex then no longer touches itself there (extract_parts() would duplicate the
 // vertex, and exact booleans reject such surfaces). Each fix is the move around a bad vertex
-// that lowers the number of such defects around the tets it moves: one tet, a group of a
-// part's tets there, or the fewest tets that join two groups, given to a part across one of
-// their faces. Moves that `allows` accepts for every tet come first, then the larger gain, then
-// the smaller volume moved. A move never splits a part, makes a new one or merges two parts of
-// one label, so the parts never grow in number. Rounds repeat over the vertices still bad until
+// that lowers the number of such defects around the tets it moves the most (then the one of
+// least volume): one tet, a group of a part's tets there, or the fewest tets that join two
+// groups, given to a part across one of their faces. Every moved tet must be allowed its new
+// label by `allows`. A move never splits a part, makes a new one or merges two parts of one
+// label, so the parts never grow in number. Rounds repeat over the vertices still bad until
 // none is left, no move helps, or max_rounds is reached. Only tets of the same region are
 // exchanged. Deterministic: the result does not depend on the thread count.
 // Pre: tets has adjacency; label/region as for extract_parts(). Throws Error{InvalidOptions}
@@ -145,8 +144,11 @@ using TetAllowsPart = std::function<bool(std::int32_t tet, std::int32_t part)>;
 // projection (paper §4.3.1): a part's infeasible volume is where lines along its direction enter
 // and leave the solid through its outer surface; an interior interface vertex that smoothing
 // carried into the infeasible volume of one of its parts moves back towards its start, or
-// across that part's direction where the seams moved the volume, until it is outside again. Where smoothing would fold a part's surface through
-// itself or collapse a part, those vertices and their neighbours keep their place. Vertices
+// across that part's direction where the seams moved the volume, until it is outside again.
+// Where smoothing would make two triangles of a part cross (also when they share a vertex),
+// collapse a triangle once coordinates are rounded to float (STL), or collapse a part, the
+// vertices of those triangles go back to their start, then their one-rings, for a few rounds
+// (all vertices after that). Vertices
 // shared by parts move identically in all of them, so interfaces stay shared exactly.
 // Pre: `parts` is extract_parts(tets, ...).
 void smooth_interfaces(const TetMesh& tets, std::vector<Part>& parts, const TetAllowsPart& allows,

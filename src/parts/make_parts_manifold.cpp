@@ -144,7 +144,6 @@ class Repair {
   bool fix(std::int32_t v) {
     std::vector<Move> moves = candidates(v);
     struct Scored {
-      std::int32_t infeasible;
       int gain;
       double volume_mm3;
       std::size_t index;
@@ -153,21 +152,22 @@ class Repair {
     for (std::size_t i = 0; i < moves.size(); ++i) {
       Move& move = moves[i];
       std::sort(move.begin(), move.end());
-      if (!well_formed(move)) continue;
+      // Only directions accessible for the tets: the parts stay DHFs at the tet level.
+      if (!well_formed(move) || !std::all_of(move.begin(), move.end(), [&](const Step& step) {
+            return allows_(step.tet, region_[step.tet], part_label_[step.to]);
+          }))
+        continue;
       const int gain = defect_gain(move);
       if (gain <= 0) continue;
-      Scored s{0, gain, 0.0, i};
-      for (const Step& step : move) {
-        s.infeasible += !allows_(step.tet, region_[step.tet], part_label_[step.to]);
-        s.volume_mm3 += volume_[step.tet];
-      }
+      Scored s{gain, 0.0, i};
+      for (const Step& step : move) s.volume_mm3 += volume_[step.tet];
       scored.push_back(s);
     }
-    // Feasible moves first (the part stays a DHF), then the larger gain, then the smaller
-    // volume change; equal keys fall back to the moves' contents, so the choice is unique.
+    // The larger gain first, then the smaller volume moved; equal keys fall back to the moves'
+    // contents, so the choice is unique.
     std::sort(scored.begin(), scored.end(), [&](const Scored& a, const Scored& b) {
-      return std::tie(a.infeasible, b.gain, a.volume_mm3, moves[a.index]) <
-             std::tie(b.infeasible, a.gain, b.volume_mm3, moves[b.index]);
+      return std::tie(b.gain, a.volume_mm3, moves[a.index]) <
+             std::tie(a.gain, b.volume_mm3, moves[b.index]);
     });
     for (const Scored& s : scored) {
       if (!keeps_parts_whole(moves[s.index])) continue;
@@ -541,7 +541,6 @@ ManifoldRepair make_parts_manifold(const TetMesh& tets, std::vector<std::int32_t
     if (label[t] == initial[t]) continue;
     ++out.moved_tets;
     out.moved_volume_mm3 += tet_volume(tets, static_cast<std::int32_t>(t));
-    out.infeasible_tets += !allows(static_cast<std::int32_t>(t), region[t], label[t]);
   }
   return out;
 }

@@ -376,50 +376,66 @@ void smooth_interfaces(const TetMesh& tets, std::vector<Part>& parts, const TetA
   };
   run();
 
-  // --- 7. where smoothing folds a surface through another, or collapses a part, undo it ---
+  // --- 7. where smoothing folds a part's surface through itself or collapses a part, undo it ---
   // A part a few tets thick can lose most of its volume, and a thin slab's interfaces can cross
-  // each other or the outer surface. Those vertices (and their neighbours) stay where they
-  // were, and the rest is smoothed again around them, until no part intersects itself.
-  constexpr int kMaxRounds = 6;
+  // each other or the outer surface. Only the vertices of the triangles that cross go back to
+  // where they started (the tet faces, which do not cross); when that is not enough, their
+  // one-rings go back too, ring by ring. Positions are shared, so every part that has such a
+  // vertex gets it back the same way.
+  constexpr int kMaxRounds = 8;
+  std::vector<char> put_back(num_vertices, 0);
   for (int round = 0;; ++round) {
-    std::vector<std::vector<std::int32_t>> to_fix(num_parts);
+    std::vector<std::vector<std::int32_t>> folded(num_parts);
     tbb::parallel_for(std::int32_t{0}, num_parts, [&](std::int32_t p) {
+      // Checked as written to STL, with float coordinates: smoothing can draw vertices so close
+      // together that rounding merges them.
       TriMesh moved{{}, parts[p].mesh.triangles};
-      for (std::int32_t g : global_of[p]) moved.vertices.push_back(position[g]);
+      for (std::int32_t g : global_of[p])
+        moved.vertices.push_back(position[g].cast<float>().cast<double>());
       if (signed_volume(moved) < 0.5 * parts[p].volume_mm3) {
-        to_fix[p] = global_of[p];
+        folded[p] = global_of[p];
         return;
       }
+      // Triangles that collapsed to a segment or a point go back first; crossing pairs are
+      // looked for once there are none (the exact test needs proper triangles).
+      for (const Tri& t : moved.triangles) {
+        const Vec3& a = moved.vertices[t[0]];
+        if ((moved.vertices[t[1]] - a).cross(moved.vertices[t[2]] - a) != Vec3::Zero()) continue;
+        for (std::int32_t c : t) folded[p].push_back(global_of[p][c]);
+      }
+      if (!folded[p].empty()) return;
       for (const auto& pair : intersecting_triangles(moved, 1u << 20)) {
-        // A part that touches itself at a point has two vertices there, so its triangles
-        // there meet without sharing a vertex: that is contact, not a fold.
+        // Where a part still touches itself at a point, extract_parts() gave it two vertices
+        // there: triangles meeting only at that place are contact, not a fold. Triangles that
+        // share a vertex and cross beyond it are a fold.
         bool contact = false;
         for (std::int32_t a : moved.triangles[pair[0]])
           for (std::int32_t b : moved.triangles[pair[1]])
-            contact |= global_of[p][a] == global_of[p][b];
+            contact |= a != b && global_of[p][a] == global_of[p][b];
         if (contact) continue;
         for (std::int32_t f : pair)
-          for (std::int32_t c : moved.triangles[f]) to_fix[p].push_back(global_of[p][c]);
+          for (std::int32_t c : moved.triangles[f]) folded[p].push_back(global_of[p][c]);
       }
     });
-    bool changed = false;
-    for (const std::vector<std::int32_t>& list : to_fix)
-      for (std::int32_t g : list) {
-        const std::int32_t n = static_cast<std::int32_t>(ring[g].size());
-        for (std::int32_t k = -1; k < n; ++k) {
-          const std::int32_t w = k < 0 ? g : ring[g][k];
-          if (kind[w] == Kind::Fixed) continue;
-          kind[w] = Kind::Fixed;
-          changed = true;
-        }
-      }
-    if (!changed) break;
+    std::vector<std::int32_t> back;
+    for (const std::vector<std::int32_t>& list : folded)
+      for (std::int32_t g : list)
+        if (position[g] != start[g] || put_back[g]) back.push_back(g);
+    if (back.empty()) break;
     if (round == kMaxRounds) {  // give up smoothing rather than return folded parts
-      std::fill(kind.begin(), kind.end(), Kind::Fixed);
       position = start;
       break;
     }
-    run();
+    std::sort(back.begin(), back.end());
+    back.erase(std::unique(back.begin(), back.end()), back.end());
+    // A vertex back at its start for the second time: its one-ring goes back too.
+    std::vector<std::int32_t> ring_too;
+    for (std::int32_t g : back)
+      if (put_back[g]) ring_too.insert(ring_too.end(), ring[g].begin(), ring[g].end());
+    for (std::int32_t g : back) put_back[g] = 1;
+    for (std::int32_t g : ring_too) put_back[g] = 1;
+    for (std::int32_t g = 0; g < num_vertices; ++g)
+      if (put_back[g]) position[g] = start[g];
   }
 
   // --- 8. every part takes the shared positions ---

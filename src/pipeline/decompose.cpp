@@ -196,11 +196,12 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
         return r == 0 && d.access.feasible.get(t, l);
       },
       opts.sandwich);
-  // A part whose tets meet only along an edge or at a vertex would touch itself there.
+  // A part whose tets meet only along an edge or at a vertex would touch itself there. Regions
+  // decomposed again keep no accessibility here: their tets may take any label of the region.
   d.manifold = make_parts_manifold(
       d.tets, label, region,
       [&](std::int32_t t, std::int32_t r, std::int32_t l) {
-        return r == 0 && d.access.feasible.get(t, l);
+        return r != 0 || d.access.feasible.get(t, l);
       });
   d.parts = extract_parts(d.tets, label, region, region_directions);
   // Parts of a region decomposed again carry that region's own accessibility, which is not kept:

@@ -157,7 +157,9 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                           {"merged_pieces", d.sandwich.merged_pieces},
                           {"merged_tets", d.sandwich.merged_tets},
                           {"moves", moves}};
-  j["manifold_repair"] = {{"moved_tets", d.manifold.moved_tets}, {"moved_volume_mm3", d.manifold.moved_volume_mm3}, {"infeasible_tets", d.manifold.infeasible_tets}, {"nonmanifold_vertices", d.manifold.nonmanifold_vertices}};
+  j["manifold_repair"] = {{"moved_tets", d.manifold.moved_tets},
+                          {"moved_volume_mm3", d.manifold.moved_volume_mm3},
+                          {"nonmanifold_vertices", d.manifold.nonmanifold_vertices}};
 
   // Normal angles between neighbouring interface triangles, before and after smoothing.
   auto smoothness = [](const InterfaceSmoothness& s) {
