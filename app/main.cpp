@@ -209,6 +209,10 @@ int main(int argc, char** argv) {
   dec->add_option("--smoothing", o.smoothing.iterations,
                   "Interface smoothing steps (0: keep the tet faces)")
       ->capture_default_str();
+  bool tet_surface = false;
+  dec->add_flag("--tet-surface", tet_surface,
+                "Keep the tet mesh's boundary as the parts' outer surface instead of cutting "
+                "the parts from the exact input solid");
   bool no_molds = false;
   dec->add_flag("--no-molds", no_molds, "Do not build the mold halves");
   auto add_mold_options = [](CLI::App* cmd, MoldOptions& m) {
@@ -293,6 +297,7 @@ int main(int argc, char** argv) {
     if (dec->parsed()) {
       o.tets.seed = o.segment.seed;
       o.make_molds = !no_molds;
+      o.exact_outer_surface = !tet_surface;
       return run_decompose(cli);
     }
     if (mld->parsed()) return run_molds(mold_outdir, mold_opts, mold_threads, mold_quiet);

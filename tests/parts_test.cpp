@@ -1235,3 +1235,78 @@ TEST(SmoothInterfaces, InterfacesStayOutOfInfeasibleVolumes) {
 
 }  // namespace
 }  // namespace dhfcast
+
+namespace dhfcast {
+namespace {
+
+// A triangle as its corner coordinates, rotated to start at the smallest corner: equal for
+// equal triangles whatever their numbering.
+std::array<double, 9> canonical(const TriMesh& m, const Tri& t, bool reversed) {
+  std::array<std::array<double, 3>, 3> c;
+  for (int i = 0; i < 3; ++i) {
+    const Vec3& p = m.vertices[t[reversed ? (3 - i) % 3 : i]];
+    c[i] = {p.x(), p.y(), p.z()};
+  }
+  std::rotate(c.begin(), std::min_element(c.begin(), c.end()), c.end());
+  std::array<double, 9> out;
+  for (int i = 0; i < 9; ++i) out[i] = c[i / 3][i % 3];
+  return out;
+}
+
+TEST(CutPartsFromSolid, OuterSurfaceIsTheInputAndInterfacesStayShared) {
+  const std::string path = test::cgal_mesh("blobby.off");
+  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
+  const TriMesh solid = test::load_scaled(path, 100.0);
+  TetOptions topts;
+  topts.target_tets = 8000;
+  const TetMesh tets = tetrahedralize(solid, topts);
+  ASSERT_GT(tets.boundary_tolerance_mm, 1e-3);  // the tet boundary is not the input surface
+  const Box3 box = bounding_box(tets.vertices);
+  const double mid_x = 0.5 * (box.min.x() + box.max.x());
+  std::vector<std::int32_t> label(tets.tets.size());
+  for (std::size_t t = 0; t < tets.tets.size(); ++t) {
+    double x = 0.0;
+    for (std::int32_t v : tets.tets[t]) x += 0.25 * tets.vertices[v].x();
+    label[t] = x < mid_x ? 0 : 1;
+  }
+  make_parts_manifold(tets, label, std::vector<std::int32_t>(label.size(), 0),
+                      [](std::int32_t, std::int32_t, std::int32_t) { return true; });
+  std::vector<Part> parts = extract_parts(tets, label, std::vector<std::int32_t>(label.size(), 0),
+                                          {{Vec3::UnitX(), Vec3::UnitY()}});
+  ASSERT_EQ(parts.size(), 2u);
+  smooth_interfaces(tets, parts, [](std::int32_t, std::int32_t) { return true; });
+
+  const SolidCut cut = cut_parts_from_solid(solid, parts);
+  ASSERT_EQ(cut.part_cut, std::vector<bool>(2, true)) << cut.problem[0] << cut.problem[1];
+  EXPECT_EQ(cut.uncovered_triangles, 0);
+  EXPECT_GE(cut.push_mm, tets.boundary_tolerance_mm);
+
+  double volume = 0.0;
+  std::vector<std::array<double, 9>> sides[2];
+  for (const Part& p : parts) {
+    EXPECT_EQ(test::solid_topology_problem(p.mesh), "") << "part " << p.id;
+    EXPECT_NEAR(p.volume_mm3, signed_volume(p.mesh), 1e-9 * p.volume_mm3);
+    volume += p.volume_mm3;
+    std::vector<Vec3> outer;
+    for (std::size_t t = 0; t < p.mesh.triangles.size(); ++t) {
+      if (p.triangle_neighbor[t] < 0) {
+        for (std::int32_t v : p.mesh.triangles[t]) outer.push_back(p.mesh.vertices[v]);
+      } else {
+        EXPECT_EQ(p.triangle_neighbor[t], 1 - p.id);
+        sides[p.id].push_back(canonical(p.mesh, p.mesh.triangles[t], p.id == 1));
+      }
+    }
+    // Every corner of the outer surface lies on the input surface, to rounding.
+    EXPECT_LE(test::max_distance_to_surface(outer, solid), 1e-9 * 100.0) << "part " << p.id;
+  }
+  // Together the parts are the input solid, not the tet mesh.
+  EXPECT_NEAR(volume, signed_volume(solid), 1e-9 * volume);
+  EXPECT_GT(std::abs(total_volume(tets) - volume), 1e-6 * volume);
+  // The interface is one surface: part 1's triangles are part 0's, reversed.
+  for (auto& side : sides) std::sort(side.begin(), side.end());
+  EXPECT_FALSE(sides[0].empty());
+  EXPECT_TRUE(sides[0] == sides[1]);
+}
+
+}  // namespace
+}  // namespace dhfcast

@@ -154,6 +154,33 @@ using TetAllowsPart = std::function<bool(std::int32_t tet, std::int32_t part)>;
 void smooth_interfaces(const TetMesh& tets, std::vector<Part>& parts, const TetAllowsPart& allows,
                        const SmoothingOptions& opts = {});
 
+// What cut_parts_from_solid() did.
+struct SolidCut {
+  double push_mm = 0.0;         // how far the regions' outer surfaces were moved out
+  std::vector<bool> part_cut;   // per part: cut from the solid (else left as a union of tets)
+  std::vector<std::string> problem;  // per part: why it was not cut, "" when it was
+  // Outer triangles of the moved regions that still lie inside the solid (the input surface
+  // sticks out of the region there by more than push_mm); 0 when the parts cover the solid.
+  std::int32_t uncovered_triangles = 0;
+  // Parts that were slivers outside the input surface (empty once cut): their tets went to the
+  // neighbour they shared the most interface with (which need not be accessible along that
+  // neighbour's direction: the cut leaves nothing of them), and the others were renumbered.
+  std::int32_t dropped_parts = 0;
+  std::vector<std::int32_t> dropped_tets;  // ascending
+};
+
+// Makes the parts' outer surfaces the input surface itself (the tet mesh only decides who owns
+// which region): each part becomes solid ∩ region, by exact corefinement, where the region is the
+// part with its outer surface moved out past the input surface (twice the farthest the input
+// sticks out of it, plus a margin). Interfaces keep their triangles, cut where they meet the
+// input surface; neighbouring parts are cut by the same exact curve, so rounded to double they
+// still share their vertices. A part whose region CGAL rejects (it intersects or touches
+// itself) is left as it is, marked in SolidCut::part_cut. A part that is empty once cut is
+// dropped (see SolidCut::dropped_parts) and the parts renumbered. triangle_neighbor and
+// volume_mm3 are updated. Deterministic.
+// Pre: `parts` is extract_parts()/smooth_interfaces() output of a tet mesh of `solid`.
+SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts);
+
 // How smooth one interface between two parts is: the angles between the normals of
 // neighbouring triangles of the interface.
 struct InterfaceSmoothness {

@@ -23,6 +23,9 @@ struct DecomposeOptions {
   SegmentOptions segment;
   SandwichOptions sandwich;
   SmoothingOptions smoothing;
+  // Cut each part from the exact input solid (cut_parts_from_solid), so its outer surface is the
+  // input surface rather than the tet mesh's boundary.
+  bool exact_outer_surface = true;
   bool make_molds = true;  // build each part's two-piece mold (molds.epsilon_mm is taken from
                            // access.epsilon_mm)
   MoldOptions molds;
@@ -51,6 +54,7 @@ struct Decomposition {
   std::vector<InaccessibleRegion> inaccessible_regions;
   SandwichRepair sandwich;  // tets moved into the part they were sandwiched in (label level)
   ManifoldRepair manifold;  // tets moved so that no part touches itself (label level)
+  SolidCut solid_cut;       // parts cut from the exact input solid (empty when not asked)
   std::vector<Part> parts;
   // Normal angles across each interface before and after smoothing, and over the outer surface
   // at the same resolution.

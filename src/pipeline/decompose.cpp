@@ -214,6 +214,7 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   smooth_interfaces(d.tets, d.parts, allows, opts.smoothing);
   d.smoothness = interface_smoothness(d.parts);
   d.outer_smoothness = outer_surface_smoothness(d.parts);
+  if (opts.exact_outer_surface) d.solid_cut = cut_parts_from_solid(solid, d.parts);
   // The parts are unions of tets, so neighbours interlock along their interfaces by up to about
   // one tet: contact that shallow is the interfaces' roughness, not a blocking part.
   d.assembly_tolerance_mm = opts.access.epsilon_mm + mean_edge_length(d.tets);

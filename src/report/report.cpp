@@ -110,7 +110,8 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                      {"smoothing_iterations", opts.smoothing.iterations},
                      {"seed", opts.segment.seed},
                      {"target_tets", opts.tets.target_tets},
-                     {"facet_distance_mm", opts.tets.facet_distance_mm}};
+                     {"facet_distance_mm", opts.tets.facet_distance_mm},
+                     {"exact_outer_surface", opts.exact_outer_surface}};
   if (opts.make_molds) j["parameters"]["molds"] = mold_parameters_json(opts.molds);
   j["tetrahedra"] = d.tets.tets.size();
   j["tet_volume_mm3"] = total_volume(d.tets);
@@ -125,6 +126,11 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                        {"tets", p.tets.size()},
                        {"region", p.region},
                        {"blocked_by", d.assembly.blocks.at(p.id)}};
+    if (static_cast<std::size_t>(p.id) < d.solid_cut.part_cut.size())
+      jp["cut_from_input"] = bool(d.solid_cut.part_cut[p.id]);
+    if (static_cast<std::size_t>(p.id) < d.solid_cut.problem.size() &&
+        !d.solid_cut.problem[p.id].empty())
+      jp["cut_problem"] = d.solid_cut.problem[p.id];
     if (static_cast<std::size_t>(p.id) < d.molds.size()) jp["molds"] = mold_json(d.molds[p.id]);
     parts.push_back(jp);
   }
@@ -160,6 +166,11 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
   j["manifold_repair"] = {{"moved_tets", d.manifold.moved_tets},
                           {"moved_volume_mm3", d.manifold.moved_volume_mm3},
                           {"nonmanifold_vertices", d.manifold.nonmanifold_vertices}};
+
+  if (opts.exact_outer_surface)
+    j["outer_surface_cut"] = {{"push_mm", d.solid_cut.push_mm},
+                              {"uncovered_triangles", d.solid_cut.uncovered_triangles},
+                              {"dropped_parts", d.solid_cut.dropped_parts}};
 
   // Normal angles between neighbouring interface triangles, before and after smoothing.
   auto smoothness = [](const InterfaceSmoothness& s) {

@@ -1,0 +1,337 @@
+// Cuts the parts from the exact input solid, so their outer surfaces are the input surface and
+// not the tet mesh's approximation of it. The only file of the parts stage that includes CGAL.
+#include <CGAL/AABB_traits.h>
+#include <CGAL/AABB_tree.h>
+#include <CGAL/AABB_triangle_primitive.h>
+#include <CGAL/Exact_predicates_exact_constructions_kernel.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/corefinement.h>
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
+#include <CGAL/Surface_mesh.h>
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "dhfcast/error.h"
+#include "dhfcast/parts.h"
+
+namespace dhfcast {
+
+namespace {
+namespace PMP = CGAL::Polygon_mesh_processing;
+using EK = CGAL::Exact_predicates_exact_constructions_kernel;
+using ExactMesh = CGAL::Surface_mesh<EK::Point_3>;
+using Face = ExactMesh::Face_index;
+// Where a face of a cut part comes from: kFromSolid for the input surface, else the
+// triangle_neighbor of the region's face it is a piece of (-1 for a pushed-out outer face).
+constexpr std::int32_t kFromSolid = -2;
+
+// Vertex positions as map keys: shared vertices of neighbouring parts have equal coordinates.
+struct VecLess {
+  bool operator()(const Vec3& a, const Vec3& b) const {
+    return std::lexicographical_compare(a.data(), a.data() + 3, b.data(), b.data() + 3);
+  }
+};
+using PointMap = std::map<Vec3, Vec3, VecLess>;
+using LengthMap = std::map<Vec3, double, VecLess>;
+
+std::optional<ExactMesh> to_exact(const TriMesh& m) {
+  ExactMesh out;
+  for (const Vec3& p : m.vertices) out.add_vertex(EK::Point_3(p.x(), p.y(), p.z()));
+  for (const Tri& t : m.triangles)
+    if (out.add_face(ExactMesh::Vertex_index(t[0]), ExactMesh::Vertex_index(t[1]),
+                     ExactMesh::Vertex_index(t[2])) == ExactMesh::null_face())
+      return std::nullopt;
+  return out;
+}
+
+// Keeps, for every face of the result, the origin of the face it was split or copied from.
+struct OriginVisitor : PMP::Corefinement::Default_visitor<ExactMesh> {
+  std::map<const ExactMesh*, ExactMesh::Property_map<Face, std::int32_t>> origin;
+  std::int32_t current = kFromSolid;
+  void before_subface_creations(Face f, ExactMesh& tm) { current = origin.at(&tm)[f]; }
+  void after_subface_created(Face f, ExactMesh& tm) { origin.at(&tm)[f] = current; }
+  void after_face_copy(Face from, const ExactMesh& src, Face to, ExactMesh& dst) {
+    origin.at(&dst)[to] = origin.at(&src)[from];
+  }
+};
+
+// The parts' outer triangles (triangle_neighbor < 0), each once, with their corner positions.
+std::vector<std::array<Vec3, 3>> outer_triangles(const std::vector<Part>& parts) {
+  std::vector<std::array<Vec3, 3>> out;
+  for (const Part& part : parts)
+    for (std::size_t t = 0; t < part.mesh.triangles.size(); ++t)
+      if (part.triangle_neighbor[t] < 0) {
+        const Tri& tri = part.mesh.triangles[t];
+        out.push_back({part.mesh.vertices[tri[0]], part.mesh.vertices[tri[1]],
+                       part.mesh.vertices[tri[2]]});
+      }
+  return out;
+}
+
+// How far the input surface sticks out of the parts' outer surface near each of its vertices:
+// every sample of the input (vertices and edge midpoints) charges its distance to the corners
+// of the outer triangle nearest to it, and then to their neighbours.
+LengthMap local_reach(const TriMesh& solid, const std::vector<std::array<Vec3, 3>>& outer) {
+  using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+  using Triangles = std::vector<K::Triangle_3>;
+  using Primitive = CGAL::AABB_triangle_primitive<K, Triangles::const_iterator>;
+  using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, Primitive>>;
+  auto point = [](const Vec3& v) { return K::Point_3(v.x(), v.y(), v.z()); };
+  Triangles triangles;
+  for (const auto& t : outer) triangles.emplace_back(point(t[0]), point(t[1]), point(t[2]));
+  LengthMap reach;
+  if (triangles.empty()) return reach;
+  Tree tree(triangles.begin(), triangles.end());
+  tree.accelerate_distance_queries();
+  std::vector<Vec3> samples = solid.vertices;
+  for (const Tri& t : solid.triangles)
+    for (int i = 0; i < 3; ++i)
+      if (t[i] < t[(i + 1) % 3])  // each edge once
+        samples.push_back(0.5 * (solid.vertices[t[i]] + solid.vertices[t[(i + 1) % 3]]));
+  std::vector<std::pair<double, std::size_t>> nearest(samples.size());
+  tbb::parallel_for(std::size_t{0}, samples.size(), [&](std::size_t i) {
+    const auto [p, id] = tree.closest_point_and_primitive(point(samples[i]));
+    nearest[i] = {std::sqrt(CGAL::squared_distance(p, point(samples[i]))),
+                  static_cast<std::size_t>(id - triangles.cbegin())};
+  });
+  std::vector<double> triangle_reach(outer.size(), 0.0);
+  for (const auto& [d, t] : nearest) triangle_reach[t] = std::max(triangle_reach[t], d);
+  for (std::size_t t = 0; t < outer.size(); ++t)
+    for (const Vec3& p : outer[t]) reach[p] = std::max(reach[p], triangle_reach[t]);
+  // Once more over the neighbours: a triangle moves out no further than its lowest corner.
+  LengthMap spread = reach;
+  for (const auto& t : outer) {
+    double m = 0.0;
+    for (const Vec3& p : t) m = std::max(m, reach.at(p));
+    for (const Vec3& p : t) spread[p] = std::max(spread[p], m);
+  }
+  return spread;
+}
+
+// Unit directions in which the outer vertices move, scaled so that every outer triangle around
+// a vertex moves out by at least 1 per unit of length (more along sharp edges, capped).
+PointMap outward_directions(const std::vector<std::array<Vec3, 3>>& outer) {
+  std::map<Vec3, std::vector<Vec3>, VecLess> normals;
+  for (const auto& t : outer) {
+    const Vec3 n = (t[1] - t[0]).cross(t[2] - t[0]);
+    if (n.norm() == 0.0) continue;
+    for (const Vec3& p : t) normals[p].push_back(n.normalized());
+  }
+  PointMap dirs;
+  for (const auto& [p, ns] : normals) {
+    Vec3 sum = Vec3::Zero();
+    for (const Vec3& n : ns) sum += n;
+    if (sum.norm() < 1e-9) continue;
+    const Vec3 dir = sum.normalized();
+    double worst = 1.0;  // smallest cosine to a triangle's normal
+    for (const Vec3& n : ns) worst = std::min(worst, dir.dot(n));
+    dirs[p] = dir / std::max(worst, 0.25);
+  }
+  return dirs;
+}
+
+using FacePairs = std::set<std::pair<std::int32_t, std::int32_t>>;
+
+// Pairs of triangles of `m` that intersect other than along shared vertices and edges.
+FacePairs crossing_pairs(const TriMesh& m) {
+  using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+  using Mesh = CGAL::Surface_mesh<K::Point_3>;
+  Mesh sm;
+  for (const Vec3& p : m.vertices) sm.add_vertex(K::Point_3(p.x(), p.y(), p.z()));
+  for (const Tri& t : m.triangles)
+    sm.add_face(Mesh::Vertex_index(t[0]), Mesh::Vertex_index(t[1]), Mesh::Vertex_index(t[2]));
+  std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> pairs;
+  PMP::self_intersections(sm, std::back_inserter(pairs));
+  FacePairs out;
+  for (const auto& [f, g] : pairs)
+    out.emplace(std::min<std::int32_t>(f.idx(), g.idx()), std::max<std::int32_t>(f.idx(), g.idx()));
+  return out;
+}
+
+Vec3 rounded(const EK::Point_3& p) {
+  // From the exact value, which does not depend on what was evaluated before or on the thread.
+  return Vec3(CGAL::to_double(CGAL::exact(p.x())), CGAL::to_double(CGAL::exact(p.y())),
+              CGAL::to_double(CGAL::exact(p.z())));
+}
+
+// solid ∩ region, with the origins of the result's faces; nullopt when CGAL rejects an operand
+// (a region that intersects or touches itself).
+std::optional<std::pair<TriMesh, std::vector<std::int32_t>>> intersect(
+    const TriMesh& solid, const TriMesh& region, const std::vector<std::int32_t>& region_origin,
+    std::string& problem) {
+  std::optional<ExactMesh> a = to_exact(solid), b = to_exact(region);
+  if (!a || !b) {
+    problem = "its region is not a 2-manifold surface";
+    return std::nullopt;
+  }
+  ExactMesh out;
+  OriginVisitor visitor;
+  visitor.origin[&*a] = a->add_property_map<Face, std::int32_t>("f:origin", kFromSolid).first;
+  auto b_origin = b->add_property_map<Face, std::int32_t>("f:origin", kFromSolid).first;
+  for (Face f : b->faces()) b_origin[f] = region_origin[f.idx()];
+  visitor.origin[&*b] = b_origin;
+  auto out_origin = out.add_property_map<Face, std::int32_t>("f:origin", kFromSolid).first;
+  visitor.origin[&out] = out_origin;
+  try {
+    const auto checked = CGAL::parameters::throw_on_self_intersection(true);
+    if (!PMP::corefine_and_compute_intersection(
+            *a, *b, out, CGAL::parameters::visitor(visitor).throw_on_self_intersection(true),
+            checked)) {
+      problem = "the exact intersection with the input solid failed";
+      return std::nullopt;
+    }
+  } catch (const PMP::Corefinement::Self_intersection_exception&) {
+    problem = "its region, moved out past the input surface, intersects itself";
+    return std::nullopt;
+  }
+  TriMesh mesh;
+  std::vector<std::int32_t> origin;
+  std::map<ExactMesh::Vertex_index, std::int32_t> index;
+  for (ExactMesh::Vertex_index v : out.vertices()) {
+    index[v] = static_cast<std::int32_t>(mesh.vertices.size());
+    mesh.vertices.push_back(rounded(out.point(v)));
+  }
+  for (Face f : out.faces()) {
+    Tri t{};
+    int k = 0;
+    for (ExactMesh::Vertex_index v : CGAL::vertices_around_face(out.halfedge(f), out))
+      if (k < 3) t[k++] = index[v];
+    mesh.triangles.push_back(t);
+    origin.push_back(out_origin[f]);
+  }
+  return std::make_pair(std::move(mesh), std::move(origin));
+}
+
+}  // namespace
+
+SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
+  SolidCut cut;
+  cut.part_cut.assign(parts.size(), false);
+  cut.problem.assign(parts.size(), "");
+  const std::vector<std::array<Vec3, 3>> outer = outer_triangles(parts);
+  const PointMap dirs = outward_directions(outer);
+  // Each outer vertex moves out twice as far as the input sticks out near it, plus a margin so
+  // that no face of a region lies on the input surface.
+  const double margin = 1e-4 * bounding_box(solid.vertices).diagonal();
+  LengthMap push = local_reach(solid, outer);
+  for (auto& [p, d] : push) d = 2.0 * d + margin;
+
+  // Where moving folds a region through itself, those vertices move half as far, in every part
+  // (shared vertices move alike); pairs that crossed before moving are the part's own.
+  const std::size_t n = parts.size();
+  std::vector<FacePairs> own(n);
+  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) { own[i] = crossing_pairs(parts[i].mesh); });
+  std::vector<TriMesh> regions(n);
+  auto move_out = [&](std::size_t i) {
+    regions[i] = parts[i].mesh;
+    for (Vec3& v : regions[i].vertices)
+      if (const auto d = dirs.find(v); d != dirs.end()) v += push.at(v) * d->second;
+  };
+  constexpr int kHalvings = 8;
+  std::vector<char> folds(n, 0);
+  for (int round = 0;; ++round) {
+    std::vector<std::vector<Vec3>> folded(n);
+    tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
+      move_out(i);
+      if (!own[i].empty()) return;  // CGAL rejects it anyway
+      for (const auto& [f, g] : crossing_pairs(regions[i]))
+        for (std::int32_t t : {f, g})
+          for (std::int32_t v : parts[i].mesh.triangles[t])
+            folded[i].push_back(parts[i].mesh.vertices[v]);
+    });
+    for (std::size_t i = 0; i < n; ++i) folds[i] = !folded[i].empty();
+    if (std::find(folds.begin(), folds.end(), 1) == folds.end() || round == kHalvings) break;
+    for (const auto& vs : folded)
+      for (const Vec3& v : vs)
+        if (const auto it = push.find(v); it != push.end()) it->second *= 0.5;
+  }
+  double largest = 0.0;
+  for (const auto& [p, d] : push) largest = std::max(largest, d);
+  cut.push_mm = largest;
+
+  std::vector<std::optional<std::pair<TriMesh, std::vector<std::int32_t>>>> results(n);
+  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
+    if (!own[i].empty())
+      cut.problem[i] = "the part intersects itself (triangles " +
+                       std::to_string(own[i].begin()->first) + " and " +
+                       std::to_string(own[i].begin()->second) + ")";
+    else if (folds[i])
+      cut.problem[i] = "its outer surface folds where it is moved out past the input surface";
+    else
+      results[i] = intersect(solid, regions[i], parts[i].triangle_neighbor, cut.problem[i]);
+  });
+  // A sliver part can lie wholly between the tet mesh's boundary and the input surface: cut, it
+  // is empty. Its tets go to the neighbour it shares the most interface with.
+  std::vector<std::int32_t> heir(n, -1);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!results[i] || !results[i]->first.triangles.empty()) continue;
+    std::map<std::int32_t, double> shared;
+    const TriMesh& m = parts[i].mesh;
+    for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+      const std::int32_t j = parts[i].triangle_neighbor[t];
+      if (j < 0 || !results[j] || results[j]->first.triangles.empty()) continue;
+      const Tri& tri = m.triangles[t];
+      shared[j] += (m.vertices[tri[1]] - m.vertices[tri[0]])
+                       .cross(m.vertices[tri[2]] - m.vertices[tri[0]])
+                       .norm();
+    }
+    for (const auto& [j, area] : shared)
+      if (heir[i] < 0 || area > shared[heir[i]]) heir[i] = j;
+    if (heir[i] < 0) {
+      results[i].reset();
+      cut.problem[i] = "cut from the input solid, nothing of it is left and no neighbour takes it";
+    }
+  }
+  std::vector<std::int32_t> new_id(n, -1);
+  std::vector<Part> kept;
+  SolidCut kept_cut = cut;
+  kept_cut.part_cut.clear();
+  kept_cut.problem.clear();
+  for (std::size_t i = 0; i < n; ++i)
+    if (heir[i] < 0) {
+      new_id[i] = static_cast<std::int32_t>(kept.size());
+      kept.push_back(std::move(parts[i]));
+      kept_cut.part_cut.push_back(results[i].has_value());
+      kept_cut.problem.push_back(cut.problem[i]);
+    }
+  for (std::size_t i = 0; i < n; ++i)
+    if (heir[i] >= 0) {
+      std::vector<std::int32_t>& tets = kept[new_id[heir[i]]].tets;
+      tets.insert(tets.end(), parts[i].tets.begin(), parts[i].tets.end());
+      std::sort(tets.begin(), tets.end());
+      ++kept_cut.dropped_parts;
+      kept_cut.dropped_tets.insert(kept_cut.dropped_tets.end(), parts[i].tets.begin(),
+                                   parts[i].tets.end());
+    }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (heir[i] >= 0) continue;
+    Part& part = kept[new_id[i]];
+    part.id = new_id[i];
+    if (results[i]) {
+      auto& [mesh, origin] = *results[i];
+      part.mesh = std::move(mesh);
+      part.triangle_neighbor.assign(origin.size(), -1);
+      for (std::size_t t = 0; t < origin.size(); ++t) {
+        if (origin[t] >= 0) part.triangle_neighbor[t] = origin[t];
+        if (origin[t] == -1) ++kept_cut.uncovered_triangles;
+      }
+      part.volume_mm3 = signed_volume(part.mesh);
+    }
+    // Faces towards a dropped part lay outside the solid with it, so none are left.
+    for (std::int32_t& j : part.triangle_neighbor)
+      if (j >= 0) j = heir[j] >= 0 ? new_id[heir[j]] : new_id[j];
+  }
+  std::sort(kept_cut.dropped_tets.begin(), kept_cut.dropped_tets.end());
+  parts = std::move(kept);
+  return kept_cut;
+}
+
+}  // namespace dhfcast
