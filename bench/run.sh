@@ -2,7 +2,9 @@
 # Runs `dhfcast decompose` on the extended models and prints one table: model, triangles, tets,
 # seconds per stage (median of RUNS runs), parts, beside the paper's Table 1.
 #
-#   bench/run.sh [--runs N] [--tets N] [--models "bunny armadillo ..."] [--build DIR]
+#   bench/run.sh [--runs N] [--tets N] [--models "bunny armadillo ..."] [--build DIR] [--keep DIR]
+#
+# --keep DIR keeps each model's first output folder and its check report in DIR.
 #
 # Models are read from $DHFCAST_MODELS_DIR (default: ../shared/models beside the repository).
 set -euo pipefail
@@ -10,6 +12,7 @@ here="$(cd "$(dirname "$0")/.." && pwd)"
 runs=3
 tets=""
 build="$here/build"
+keep=""
 models_dir="${DHFCAST_MODELS_DIR:-$here/../shared/models}"
 models="bunny armadillo elephant fertility duck bimba doubletorus dragonstand fandisk rockerarm pinion mastercylinder joint wrench teacup vase"
 while [ $# -gt 0 ]; do
@@ -18,7 +21,8 @@ while [ $# -gt 0 ]; do
     --tets) tets="$2"; shift 2 ;;
     --models) models="$2"; shift 2 ;;
     --build) build="$2"; shift 2 ;;
-    *) echo "usage: bench/run.sh [--runs N] [--tets N] [--models LIST] [--build DIR]" >&2; exit 2 ;;
+    --keep) keep="$2"; shift 2 ;;
+    *) echo "usage: bench/run.sh [--runs N] [--tets N] [--models LIST] [--build DIR] [--keep DIR]" >&2; exit 2 ;;
   esac
 done
 [ -d "$models_dir" ] || { echo "bench: no models folder at $models_dir (set DHFCAST_MODELS_DIR)" >&2; exit 2; }
@@ -32,8 +36,8 @@ declare -A paper=(
 
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
-printf '%-15s %7s %7s %6s %6s %6s %6s %6s %6s %5s %6s %-24s | %7s %5s %5s %5s %5s\n' \
-  model tris tets load tets_s access segm parts total parts chk_s check p.tets p.DHF p.sol p.prt p.#
+printf '%-15s %7s %7s %6s %6s %6s %6s %6s %6s %5s %5s %6s %-24s | %7s %5s %5s %5s %5s\n' \
+  model tris tets load tets_s access segm parts total parts cut chk_s check p.tets p.DHF p.sol p.prt p.#
 for m in $models; do
   f="$models_dir/$m.stl"
   [ -f "$f" ] || { echo "bench: skip $m (no $f)" >&2; continue; }
@@ -47,6 +51,12 @@ for m in $models; do
   check_start=$(date +%s.%N)
   "$build/dhfcast" check "$tmp/$m-1" --input "$f" --json > "$tmp/$m-check.json" || true
   check_end=$(date +%s.%N)
+  if [ -n "$keep" ]; then
+    mkdir -p "$keep"
+    rm -rf "${keep:?}/$m"
+    cp -r "$tmp/$m-1" "$keep/$m"
+    "$build/dhfcast" check "$tmp/$m-1" --input "$f" > "$keep/$m.check.txt" 2>&1 || true
+  fi
   /usr/bin/python3 - "$m" "$tmp" "$runs" "${paper[$m]:-- - - - -}" "$check_start" "$check_end" <<'PY'
 import json, statistics, sys
 m, tmp, runs, paper = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4].split()
@@ -57,9 +67,10 @@ verdict = "PASS" if not failed else "FAIL:" + ",".join(failed)
 docs = [json.load(open(f"{tmp}/{m}-{r}/decomposition.json")) for r in range(1, runs + 1)]
 med = lambda k: statistics.median(d["timings_s"][k] for d in docs)
 d = docs[0]
+cut = f"{sum(1 for p in d['parts'] if p.get('cut_from_input'))}/{len(d['parts'])}"
 print(f"{m:<15} {d['input']['triangles']:7d} {d['tetrahedra']:7d} {med('load'):6.1f} "
       f"{med('tetrahedralize'):6.1f} {med('accessibility'):6.1f} {med('segmentation'):6.1f} "
-      f"{med('parts'):6.1f} {med('total'):6.1f} {len(d['parts']):5d} {check_s:6.1f} {verdict:<24} | "
+      f"{med('parts'):6.1f} {med('total'):6.1f} {len(d['parts']):5d} {cut:>5} {check_s:6.1f} {verdict:<24} | "
       + " ".join(f"{x:>5}" for x in paper))
 PY
 done

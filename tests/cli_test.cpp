@@ -178,4 +178,30 @@ TEST(Cli, NoMoldsSkipsThemAndMoldsBuildsThemLater) {
   EXPECT_EQ(run("molds " + dir + "/nowhere --quiet").exit_code, 4);
 }
 
+TEST(Cli, PartsAreCutFromTheInputUnlessTetSurfaceIsAsked) {
+  const std::string path = test::cgal_mesh("ellipsoid.off");
+  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
+  const std::string dir = test::temp_dir("ellipsoid");
+  const std::string common = " --scale 50 --tets 3000 --directions 64 --restarts 2 --quiet --no-molds";
+  ASSERT_EQ(run("decompose " + path + " -o " + dir + "/exact" + common).exit_code, 0);
+  ASSERT_EQ(run("decompose " + path + " -o " + dir + "/tets" + common + " --tet-surface").exit_code,
+            0);
+  TriMesh input = read_mesh(path);
+  for (Vec3& v : input.vertices) v *= 50.0;
+  const double volume = signed_volume(input);
+  auto parts_volume = [&](const std::string& out) {
+    double sum = 0.0;
+    for (const auto& f : fs::directory_iterator(dir + "/" + out + "/parts"))
+      sum += signed_volume(read_mesh(f.path().string()));
+    return sum;
+  };
+  // Float STL coordinates: the exact parts match the input to rounding, the tet boundary not.
+  EXPECT_NEAR(parts_volume("exact"), volume, 1e-6 * volume);
+  EXPECT_GT(std::abs(parts_volume("tets") - volume), 1e-4 * volume);
+  std::stringstream json;
+  json << std::ifstream(dir + "/tets/decomposition.json").rdbuf();
+  EXPECT_NE(json.str().find("\"exact_outer_surface\": false"), std::string::npos);
+  EXPECT_EQ(json.str().find("\"outer_surface_cut\""), std::string::npos);
+}
+
 }  // namespace

@@ -171,12 +171,14 @@ struct SolidCut {
 
 // Makes the parts' outer surfaces the input surface itself (the tet mesh only decides who owns
 // which region): each part becomes solid ∩ region, by exact corefinement, where the region is the
-// part with its outer surface moved out past the input surface (twice the farthest the input
-// sticks out of it, plus a margin). Interfaces keep their triangles, cut where they meet the
-// input surface; neighbouring parts are cut by the same exact curve, so rounded to double they
-// still share their vertices. A part whose region CGAL rejects (it intersects or touches
-// itself) is left as it is, marked in SolidCut::part_cut. A part that is empty once cut is
-// dropped (see SolidCut::dropped_parts) and the parts renumbered. triangle_neighbor and
+// part with its outer vertices moved out past the input surface (twice as far as the input
+// sticks out of the outer triangles around each, plus a margin; less where moving that far
+// would fold the region, which can leave SolidCut::uncovered_triangles). Shared vertices move
+// alike in every part. Interfaces keep their triangles, cut where they meet the input surface;
+// neighbouring parts are cut by the same exact curve, so rounded to double they still share
+// their vertices and triangles. A part that intersects itself, or whose region CGAL rejects, is
+// left as it is, marked in SolidCut::part_cut and SolidCut::problem. A part that is empty once
+// cut is dropped (see SolidCut::dropped_parts) and the parts renumbered. triangle_neighbor and
 // volume_mm3 are updated. Deterministic.
 // Pre: `parts` is extract_parts()/smooth_interfaces() output of a tet mesh of `solid`.
 SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts);

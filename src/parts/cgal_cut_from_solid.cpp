@@ -8,7 +8,6 @@
 #include <CGAL/Polygon_mesh_processing/corefinement.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Surface_mesh.h>
-#include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -19,7 +18,6 @@
 #include <string>
 #include <vector>
 
-#include "dhfcast/error.h"
 #include "dhfcast/parts.h"
 
 namespace dhfcast {
@@ -156,10 +154,11 @@ FacePairs crossing_pairs(const TriMesh& m) {
   return out;
 }
 
+// The point as the float STL will hold it. From the exact value, which does not depend on what
+// was evaluated before or on the thread, so neighbours round shared points alike.
 Vec3 rounded(const EK::Point_3& p) {
-  // From the exact value, which does not depend on what was evaluated before or on the thread.
-  return Vec3(CGAL::to_double(CGAL::exact(p.x())), CGAL::to_double(CGAL::exact(p.y())),
-              CGAL::to_double(CGAL::exact(p.z())));
+  auto f = [](const EK::FT& x) { return double(float(CGAL::to_double(CGAL::exact(x)))); };
+  return Vec3(f(p.x()), f(p.y()), f(p.z()));
 }
 
 // solid ∩ region, with the origins of the result's faces; nullopt when CGAL rejects an operand
@@ -192,18 +191,24 @@ std::optional<std::pair<TriMesh, std::vector<std::int32_t>>> intersect(
     problem = "its region, moved out past the input surface, intersects itself";
     return std::nullopt;
   }
+  // Points the cut put within a float step of each other become one, and the needle triangles
+  // between them go (in a neighbour too, which rounds the same points).
   TriMesh mesh;
   std::vector<std::int32_t> origin;
   std::map<ExactMesh::Vertex_index, std::int32_t> index;
+  std::map<Vec3, std::int32_t, VecLess> at;
   for (ExactMesh::Vertex_index v : out.vertices()) {
-    index[v] = static_cast<std::int32_t>(mesh.vertices.size());
-    mesh.vertices.push_back(rounded(out.point(v)));
+    const Vec3 p = rounded(out.point(v));
+    const auto [it, added] = at.emplace(p, static_cast<std::int32_t>(mesh.vertices.size()));
+    if (added) mesh.vertices.push_back(p);
+    index[v] = it->second;
   }
   for (Face f : out.faces()) {
     Tri t{};
     int k = 0;
     for (ExactMesh::Vertex_index v : CGAL::vertices_around_face(out.halfedge(f), out))
       if (k < 3) t[k++] = index[v];
+    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
     mesh.triangles.push_back(t);
     origin.push_back(out_origin[f]);
   }
