@@ -8,10 +8,7 @@
 #
 # Models are read from $DHFCAST_MODELS_DIR (default: ../shared/models beside the repository).
 set -uo pipefail
-here="$(cd "$(dirname "$0")/.." && pwd)"
-build="$here/build"
-models_dir="${DHFCAST_MODELS_DIR:-$here/../shared/models}"
-models="bunny armadillo elephant fertility duck bimba doubletorus dragonstand fandisk rockerarm pinion mastercylinder joint wrench teacup vase"
+source "$(dirname "$0")/common.sh"
 tets=""
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -21,8 +18,7 @@ while [ $# -gt 0 ]; do
     *) echo "usage: bench/molds.sh [--models LIST] [--build DIR] [--tets N]" >&2; exit 2 ;;
   esac
 done
-[ -d "$models_dir" ] || { echo "bench: no models folder at $models_dir (set DHFCAST_MODELS_DIR)" >&2; exit 2; }
-[ -x "$build/dhfcast" ] || { echo "bench: build first (cmake --build $build)" >&2; exit 2; }
+require_models_and_build
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 printf '%-15s %5s %6s %8s %-6s %s\n' model parts molds molds_s check print

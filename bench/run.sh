@@ -8,13 +8,10 @@
 #
 # Models are read from $DHFCAST_MODELS_DIR (default: ../shared/models beside the repository).
 set -euo pipefail
-here="$(cd "$(dirname "$0")/.." && pwd)"
+source "$(dirname "$0")/common.sh"
 runs=3
 tets=""
-build="$here/build"
 keep=""
-models_dir="${DHFCAST_MODELS_DIR:-$here/../shared/models}"
-models="bunny armadillo elephant fertility duck bimba doubletorus dragonstand fandisk rockerarm pinion mastercylinder joint wrench teacup vase"
 while [ $# -gt 0 ]; do
   case "$1" in
     --runs) runs="$2"; shift 2 ;;
@@ -25,8 +22,7 @@ while [ $# -gt 0 ]; do
     *) echo "usage: bench/run.sh [--runs N] [--tets N] [--models LIST] [--build DIR] [--keep DIR]" >&2; exit 2 ;;
   esac
 done
-[ -d "$models_dir" ] || { echo "bench: no models folder at $models_dir (set DHFCAST_MODELS_DIR)" >&2; exit 2; }
-[ -x "$build/dhfcast" ] || { echo "bench: build first (cmake --build $build)" >&2; exit 2; }
+require_models_and_build
 
 # Paper's Table 1: tets, DHF s, solve s, partsgen s, parts.
 declare -A paper=(

@@ -6,18 +6,18 @@
 #include <CGAL/Exact_predicates_exact_constructions_kernel.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/corefinement.h>
-#include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Surface_mesh.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <optional>
-#include <set>
 #include <string>
 #include <vector>
 
+#include "dhfcast/mesh.h"
 #include "dhfcast/parts.h"
 
 namespace dhfcast {
@@ -136,24 +136,6 @@ PointMap outward_directions(const std::vector<std::array<Vec3, 3>>& outer) {
   return dirs;
 }
 
-using FacePairs = std::set<std::pair<std::int32_t, std::int32_t>>;
-
-// Pairs of triangles of `m` that intersect other than along shared vertices and edges.
-FacePairs crossing_pairs(const TriMesh& m) {
-  using K = CGAL::Exact_predicates_inexact_constructions_kernel;
-  using Mesh = CGAL::Surface_mesh<K::Point_3>;
-  Mesh sm;
-  for (const Vec3& p : m.vertices) sm.add_vertex(K::Point_3(p.x(), p.y(), p.z()));
-  for (const Tri& t : m.triangles)
-    sm.add_face(Mesh::Vertex_index(t[0]), Mesh::Vertex_index(t[1]), Mesh::Vertex_index(t[2]));
-  std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> pairs;
-  PMP::self_intersections(sm, std::back_inserter(pairs));
-  FacePairs out;
-  for (const auto& [f, g] : pairs)
-    out.emplace(std::min<std::int32_t>(f.idx(), g.idx()), std::max<std::int32_t>(f.idx(), g.idx()));
-  return out;
-}
-
 // The point as the float STL will hold it. From the exact value, which does not depend on what
 // was evaluated before or on the thread, so neighbours round shared points alike.
 Vec3 rounded(const EK::Point_3& p) {
@@ -232,8 +214,10 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   // Where moving folds a region through itself, those vertices move half as far, in every part
   // (shared vertices move alike); pairs that crossed before moving are the part's own.
   const std::size_t n = parts.size();
-  std::vector<FacePairs> own(n);
-  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) { own[i] = crossing_pairs(parts[i].mesh); });
+  using Pairs = std::vector<std::array<std::int32_t, 2>>;
+  std::vector<Pairs> own(n);
+  tbb::parallel_for(std::size_t{0}, n,
+                    [&](std::size_t i) { own[i] = intersecting_triangles(parts[i].mesh, 1); });
   std::vector<TriMesh> regions(n);
   auto move_out = [&](std::size_t i) {
     regions[i] = parts[i].mesh;
@@ -247,8 +231,8 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
     tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
       move_out(i);
       if (!own[i].empty()) return;  // CGAL rejects it anyway
-      for (const auto& [f, g] : crossing_pairs(regions[i]))
-        for (std::int32_t t : {f, g})
+      for (const auto& pair : intersecting_triangles(regions[i], ~0u))
+        for (std::int32_t t : pair)
           for (std::int32_t v : parts[i].mesh.triangles[t])
             folded[i].push_back(parts[i].mesh.vertices[v]);
     });
@@ -266,8 +250,8 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
     if (!own[i].empty())
       cut.problem[i] = "the part intersects itself (triangles " +
-                       std::to_string(own[i].begin()->first) + " and " +
-                       std::to_string(own[i].begin()->second) + ")";
+                       std::to_string(own[i][0][0]) + " and " + std::to_string(own[i][0][1]) +
+                       ")";
     else if (folds[i])
       cut.problem[i] = "its outer surface folds where it is moved out past the input surface";
     else
