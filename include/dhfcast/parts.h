@@ -171,9 +171,10 @@ struct SolidCut {
 
 // Makes the parts' outer surfaces the input surface itself (the tet mesh only decides who owns
 // which region): each part becomes solid ∩ region, by exact corefinement, where the region is the
-// part with its outer vertices moved out past the input surface (twice as far as the input
-// sticks out of the outer triangles around each, plus a margin; less where moving that far
-// would fold the region, which can leave SolidCut::uncovered_triangles). Shared vertices move
+// part with its outer vertices moved out past the input surface along the input's normal
+// (twice as far as the input sticks out of the outer triangles around each, plus a margin; less
+// where moving that far would fold the region, which can leave
+// SolidCut::uncovered_triangles). Shared vertices move
 // alike in every part. Interfaces keep their triangles, cut where they meet the input surface;
 // neighbouring parts are cut by the same exact curve, so rounded to double they still share
 // their vertices and triangles. A part that intersects itself, or whose region CGAL rejects, is

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -38,6 +39,11 @@ struct VecLess {
   }
 };
 using PointMap = std::map<Vec3, Vec3, VecLess>;
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+using Triangles = std::vector<K::Triangle_3>;
+using Tree = CGAL::AABB_tree<
+    CGAL::AABB_traits<K, CGAL::AABB_triangle_primitive<K, Triangles::const_iterator>>>;
+K::Point_3 point(const Vec3& v) { return K::Point_3(v.x(), v.y(), v.z()); }
 using LengthMap = std::map<Vec3, double, VecLess>;
 
 std::optional<ExactMesh> to_exact(const TriMesh& m) {
@@ -78,11 +84,6 @@ std::vector<std::array<Vec3, 3>> outer_triangles(const std::vector<Part>& parts)
 // every sample of the input (vertices and edge midpoints) charges its distance to the corners
 // of the outer triangle nearest to it, and then to their neighbours.
 LengthMap local_reach(const TriMesh& solid, const std::vector<std::array<Vec3, 3>>& outer) {
-  using K = CGAL::Exact_predicates_inexact_constructions_kernel;
-  using Triangles = std::vector<K::Triangle_3>;
-  using Primitive = CGAL::AABB_triangle_primitive<K, Triangles::const_iterator>;
-  using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, Primitive>>;
-  auto point = [](const Vec3& v) { return K::Point_3(v.x(), v.y(), v.z()); };
   Triangles triangles;
   for (const auto& t : outer) triangles.emplace_back(point(t[0]), point(t[1]), point(t[2]));
   LengthMap reach;
@@ -114,26 +115,43 @@ LengthMap local_reach(const TriMesh& solid, const std::vector<std::array<Vec3, 3
   return spread;
 }
 
-// Unit directions in which the outer vertices move, scaled so that every outer triangle around
-// a vertex moves out by at least 1 per unit of length (more along sharp edges, capped).
-PointMap outward_directions(const std::vector<std::array<Vec3, 3>>& outer) {
-  std::map<Vec3, std::vector<Vec3>, VecLess> normals;
-  for (const auto& t : outer) {
-    const Vec3 n = (t[1] - t[0]).cross(t[2] - t[0]);
-    if (n.norm() == 0.0) continue;
-    for (const Vec3& p : t) normals[p].push_back(n.normalized());
+// The input surface's normal at the point nearest to each outer vertex, interpolated from its
+// vertex normals: a smooth direction field even where the tet mesh's boundary is creased.
+PointMap input_normals(const TriMesh& solid, const std::vector<std::array<Vec3, 3>>& outer) {
+  std::vector<Vec3> vertex_normal(solid.vertices.size(), Vec3::Zero());
+  Triangles triangles;
+  for (const Tri& t : solid.triangles) {
+    const Vec3 &a = solid.vertices[t[0]], &b = solid.vertices[t[1]], &c = solid.vertices[t[2]];
+    const Vec3 n = (b - a).cross(c - a);  // area-weighted
+    for (std::int32_t v : t) vertex_normal[v] += n;
+    triangles.emplace_back(point(a), point(b), point(c));
   }
-  PointMap dirs;
-  for (const auto& [p, ns] : normals) {
+  for (Vec3& n : vertex_normal) n.normalize();
+  Tree tree(triangles.begin(), triangles.end());
+  tree.accelerate_distance_queries();
+  std::vector<Vec3> corners;
+  for (const auto& t : outer) corners.insert(corners.end(), t.begin(), t.end());
+  std::sort(corners.begin(), corners.end(), VecLess());
+  corners.erase(std::unique(corners.begin(), corners.end()), corners.end());
+  std::vector<Vec3> normal(corners.size());
+  tbb::parallel_for(std::size_t{0}, corners.size(), [&](std::size_t i) {
+    const auto [q, id] = tree.closest_point_and_primitive(point(corners[i]));
+    const Tri& t = solid.triangles[id - triangles.cbegin()];
+    const Vec3 &a = solid.vertices[t[0]], &b = solid.vertices[t[1]], &c = solid.vertices[t[2]];
+    const Vec3 p(q.x(), q.y(), q.z());
+    const Vec3 n = (b - a).cross(c - a);
+    const double area = n.squaredNorm();
     Vec3 sum = Vec3::Zero();
-    for (const Vec3& n : ns) sum += n;
-    if (sum.norm() < 1e-9) continue;
-    const Vec3 dir = sum.normalized();
-    double worst = 1.0;  // smallest cosine to a triangle's normal
-    for (const Vec3& n : ns) worst = std::min(worst, dir.dot(n));
-    dirs[p] = dir / std::max(worst, 0.25);
-  }
-  return dirs;
+    if (area > 0.0) {  // barycentric weights of p
+      sum += (c - b).cross(p - b).dot(n) / area * vertex_normal[t[0]];
+      sum += (a - c).cross(p - c).dot(n) / area * vertex_normal[t[1]];
+      sum += (b - a).cross(p - a).dot(n) / area * vertex_normal[t[2]];
+    }
+    normal[i] = sum.norm() > 1e-9 ? sum.normalized() : n.normalized();
+  });
+  PointMap out;
+  for (std::size_t i = 0; i < corners.size(); ++i) out.emplace(corners[i], normal[i]);
+  return out;
 }
 
 // The point as the float STL will hold it. From the exact value, which does not depend on what
@@ -141,6 +159,51 @@ PointMap outward_directions(const std::vector<std::array<Vec3, 3>>& outer) {
 Vec3 rounded(const EK::Point_3& p) {
   auto f = [](const EK::FT& x) { return double(float(CGAL::to_double(CGAL::exact(x)))); };
   return Vec3(f(p.x()), f(p.y()), f(p.z()));
+}
+
+// Caps: triangles of the outer surface flat to float precision, one corner on the opposite
+// edge. Rounding can tilt them through a neighbour, so the triangle across that edge is split at
+// the corner instead and the cap goes. Interfaces are left alone: a neighbour holds them too.
+// One pass; returns whether it removed any (a split triangle waits for the next pass).
+bool remove_caps_once(TriMesh& mesh, std::vector<std::int32_t>& origin) {
+  constexpr double kFlat = 1e-6;  // corner's distance from the edge per unit of edge length
+  std::map<std::pair<std::int32_t, std::int32_t>, std::size_t> across;  // directed edge -> tri
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t)
+    for (int k = 0; k < 3; ++k) across[{mesh.triangles[t][k], mesh.triangles[t][(k + 1) % 3]}] = t;
+  std::vector<char> touched(mesh.triangles.size(), 0), gone(mesh.triangles.size(), 0);
+  const std::size_t n = mesh.triangles.size();
+  for (std::size_t t = 0; t < n; ++t) {
+    if (touched[t] || origin[t] >= 0) continue;
+    for (int k = 0; k < 3; ++k) {
+      const std::int32_t m = mesh.triangles[t][k], a = mesh.triangles[t][(k + 1) % 3],
+                         b = mesh.triangles[t][(k + 2) % 3];
+      const Vec3 ab = mesh.vertices[b] - mesh.vertices[a], am = mesh.vertices[m] - mesh.vertices[a];
+      const double s = am.dot(ab) / ab.squaredNorm();
+      if (!(s > 0.0 && s < 1.0) || am.cross(ab).norm() > kFlat * ab.squaredNorm()) continue;
+      const auto o = across.find({b, a});
+      if (o == across.end() || touched[o->second] || origin[o->second] >= 0) continue;
+      const Tri& other = mesh.triangles[o->second];
+      std::int32_t c = -1;
+      for (std::int32_t v : other)
+        if (v != a && v != b) c = v;
+      if (c == m) continue;
+      mesh.triangles[o->second] = {b, m, c};
+      mesh.triangles.push_back({m, a, c});
+      origin.push_back(origin[o->second]);
+      touched[o->second] = touched[t] = gone[t] = 1;
+      break;
+    }
+  }
+  std::size_t kept = 0;
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t)
+    if (t >= n || !gone[t]) {
+      mesh.triangles[kept] = mesh.triangles[t];
+      origin[kept++] = origin[t];
+    }
+  const bool removed = kept < mesh.triangles.size();
+  mesh.triangles.resize(kept);
+  origin.resize(kept);
+  return removed;
 }
 
 // solid ∩ region, with the origins of the result's faces; nullopt when CGAL rejects an operand
@@ -194,6 +257,8 @@ std::optional<std::pair<TriMesh, std::vector<std::int32_t>>> intersect(
     mesh.triangles.push_back(t);
     origin.push_back(out_origin[f]);
   }
+  for (int pass = 0; pass < 8 && remove_caps_once(mesh, origin); ++pass) {
+  }
   return std::make_pair(std::move(mesh), std::move(origin));
 }
 
@@ -204,7 +269,7 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   cut.part_cut.assign(parts.size(), false);
   cut.problem.assign(parts.size(), "");
   const std::vector<std::array<Vec3, 3>> outer = outer_triangles(parts);
-  const PointMap dirs = outward_directions(outer);
+  const PointMap dirs = input_normals(solid, outer);
   // Each outer vertex moves out twice as far as the input sticks out near it, plus a margin so
   // that no face of a region lies on the input surface.
   const double margin = 1e-4 * bounding_box(solid.vertices).diagonal();
@@ -218,29 +283,32 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   std::vector<Pairs> own(n);
   tbb::parallel_for(std::size_t{0}, n,
                     [&](std::size_t i) { own[i] = intersecting_triangles(parts[i].mesh, 1); });
+  // Where moving folds a region through itself, those vertices move half as far, in every part
+  // (shared vertices move alike); pairs that crossed before moving are the part's own.
   std::vector<TriMesh> regions(n);
   auto move_out = [&](std::size_t i) {
     regions[i] = parts[i].mesh;
     for (Vec3& v : regions[i].vertices)
       if (const auto d = dirs.find(v); d != dirs.end()) v += push.at(v) * d->second;
   };
-  constexpr int kHalvings = 8;
+  constexpr int kHalvings = 12;
   std::vector<char> folds(n, 0);
   for (int round = 0;; ++round) {
-    std::vector<std::vector<Vec3>> folded(n);
+    std::vector<std::set<Vec3, VecLess>> folded(n);
     tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
       move_out(i);
       if (!own[i].empty()) return;  // CGAL rejects it anyway
       for (const auto& pair : intersecting_triangles(regions[i], ~0u))
         for (std::int32_t t : pair)
           for (std::int32_t v : parts[i].mesh.triangles[t])
-            folded[i].push_back(parts[i].mesh.vertices[v]);
+            folded[i].insert(parts[i].mesh.vertices[v]);
     });
     for (std::size_t i = 0; i < n; ++i) folds[i] = !folded[i].empty();
     if (std::find(folds.begin(), folds.end(), 1) == folds.end() || round == kHalvings) break;
-    for (const auto& vs : folded)
-      for (const Vec3& v : vs)
-        if (const auto it = push.find(v); it != push.end()) it->second *= 0.5;
+    std::set<Vec3, VecLess> all;
+    for (const auto& vs : folded) all.insert(vs.begin(), vs.end());
+    for (const Vec3& v : all)
+      if (const auto it = push.find(v); it != push.end()) it->second *= 0.5;
   }
   double largest = 0.0;
   for (const auto& [p, d] : push) largest = std::max(largest, d);
