@@ -57,10 +57,6 @@ enum class BooleanOp { Union, Difference };
 // is a 2-manifold surface (a part read back from an STL is welded there).
 TriMesh unweld_nonmanifold(const TriMesh& mesh);
 
-// `mesh` with its vertices (and edges) duplicated where the surface touches itself, so that it
-// is a 2-manifold surface (a part read back from an STL is welded there).
-TriMesh unweld_nonmanifold(const TriMesh& mesh);
-
 // a op b for closed, outward, non-self-intersecting meshes (a soup of disjoint closed
 // components is fine); b is checked for self-intersections where it meets a. Throws
 // Error{BooleanFailed} naming `what` when b intersects itself or CGAL gives no solid.
