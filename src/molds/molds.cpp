@@ -377,6 +377,14 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
       best_extent = extent;
     }
   }
+  // No trap (the pouring direction with the fewest has none): the sprue still goes at the
+  // parting line's highest point, where the last air leaves as the cavity fills.
+  if (traps.empty())
+    for (const auto& e : split.parting_edges)
+      for (std::int32_t v : e)
+        if (traps.empty() || cavity.vertices[v].dot(up) > cavity.vertices[traps[0]].dot(up) ||
+            (cavity.vertices[v].dot(up) == cavity.vertices[traps[0]].dot(up) && v < traps[0]))
+          traps.assign(1, v);
   const Frame frame{up.cross(d).normalized(), up, d};
   mold.gravity_up = up;
 
@@ -508,6 +516,12 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
     canonicalize(*half);
     if (!problem.empty())
       throw Error(ErrorCode::BooleanFailed, name + ": " + label + " half " + problem);
+    // Where the parting surface dips past the part near its outline, the booleans leave chips
+    // of the block loose in the cavity: they would neither print (nothing under them) nor come
+    // out with the half. Only the shell resting on the bed is the half.
+    keep_shells_on_bed(*half);
+    if (half->triangles.empty())
+      throw Error(ErrorCode::Internal, name + ": " + label + " half has no face on z = 0");
     const MeshDiagnostics diag_half = validate_mesh(weld_exact(*half));
     if (!diag_half.ok())
       throw Error(ErrorCode::BooleanFailed,

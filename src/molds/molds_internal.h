@@ -125,4 +125,8 @@ void canonicalize(TriMesh& mesh);
 // Welds vertices with identical coordinates (what reading an STL does).
 TriMesh weld_exact(const TriMesh& mesh);
 
+// Keeps the shells (connected components) that have a vertex on the plane z = 0, and the
+// vertices they use, in their order.
+void keep_shells_on_bed(TriMesh& mesh);
+
 }  // namespace dhfcast::detail
