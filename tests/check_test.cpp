@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "dhfcast/error.h"
@@ -345,12 +346,18 @@ bool l_part(int i, int j, int k) {
   return i == 1 && ((j == 1 && k == 2) || (j == 2 && (k == 1 || k == 2)));
 }
 
+// The L's mold halves: the block [-10, 110] x [-10, 70] x [-10, 30] above and below z = 10
+// (the up half takes z >= 10), less the L.
+std::array<TriMesh, 2> l_molds() {
+  return {grid_surface(kLxs, kLys, kLzs,
+                       [](int i, int j, int k) { return k >= 2 && !l_part(i, j, k); }),
+          grid_surface(kLxs, kLys, kLzs,
+                       [](int i, int j, int k) { return k <= 1 && !l_part(i, j, k); })};
+}
+
 TEST(Check, MoldHalfWithAnUndercutFailsMolds) {
   const TriMesh part = grid_surface(kLxs, kLys, kLzs, l_part);
-  const TriMesh up =
-      grid_surface(kLxs, kLys, kLzs, [](int i, int j, int k) { return k >= 2 && !l_part(i, j, k); });
-  const TriMesh down =
-      grid_surface(kLxs, kLys, kLzs, [](int i, int j, int k) { return k <= 1 && !l_part(i, j, k); });
+  const auto [up, down] = l_molds();
   const CheckReport good =
       run(write_folder("molds", part, {{part, Vec3::UnitZ(), {up, down}}}, {0}));
   SCOPED_TRACE(format_text(good));
@@ -394,6 +401,71 @@ TEST(Check, MoldHalfWithAnUndercutFailsMolds) {
       [](nlohmann::json& j) { j["parts"][0]["molds"]["down"] = "molds/nowhere.stl"; }));
   expect_failures(missing, {"contract", "solids", "molds"});
   EXPECT_TRUE(item(missing, "dhf").passed);
+}
+
+// Mold halves written in frames of their own (as dhfcast writes them, laid flat to print) are
+// checked where decomposition.json's motions put them back around the part.
+TEST(Check, MoldHalvesArePlacedByTheirMotions) {
+  const TriMesh part = grid_surface(kLxs, kLys, kLzs, l_part);
+  const auto [up, down] = l_molds();
+  // Each half's file holds it moved by the inverse of its motion to the model.
+  using Motion = Eigen::Matrix<double, 3, 4>;
+  auto motion = [](double angle, const Vec3& axis, const Vec3& shift) {
+    Motion m;
+    m << Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix(), shift;
+    return m;
+  };
+  const Motion up_to_model = motion(2.5, Vec3(1, 2, 3), Vec3(40, -7, 12)),
+               down_to_model = motion(-0.4, Vec3(0, 1, 0), Vec3(-3, 5, 60));
+  auto moved_back = [](TriMesh m, const Motion& to_model) {
+    for (Vec3& p : m.vertices) p = to_model.leftCols<3>().transpose() * (p - to_model.col(3));
+    return m;
+  };
+  auto rows = [](const Motion& m) {
+    nlohmann::json j = nlohmann::json::array();
+    for (int r = 0; r < 3; ++r) j.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
+    return j;
+  };
+  const std::vector<PartSpec> parts = {
+      {part, Vec3::UnitZ(), {moved_back(up, up_to_model), moved_back(down, down_to_model)}}};
+  auto with_motions = [&](const Motion& up_motion) {
+    return [&, up_motion](nlohmann::json& j) {
+      j["parts"][0]["molds"]["up_to_model"] = rows(up_motion);
+      j["parts"][0]["molds"]["down_to_model"] = rows(down_to_model);
+    };
+  };
+  const CheckReport placed =
+      run(write_folder("placed", part, parts, {0}, with_motions(up_to_model)));
+  SCOPED_TRACE(format_text(placed));
+  EXPECT_TRUE(placed.passed());
+  EXPECT_GE(figure(item(placed, "molds"), "min_surface_coverage"), 0.99);
+
+  // Without the motions the halves are taken as they are in the files: far off the part.
+  expect_failures(run(write_folder("unplaced", part, parts, {0})), {"molds"});
+
+  // A motion that is not rigid, or not a motion, fails the contract with a one-line reason (and
+  // the molds, whose half cannot be placed).
+  Motion scaled = up_to_model;
+  scaled.leftCols<3>() *= 1.01;
+  Motion mirrored = up_to_model;
+  mirrored.col(0) *= -1;
+  for (const auto& [tag, bad, reason] :
+       {std::tuple{"scaled", rows(scaled), "is not rigid"},
+        std::tuple{"mirrored", rows(mirrored), "is a reflection"},
+        std::tuple{"short", nlohmann::json{{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, "is not 3 rows"},
+        std::tuple{"text", nlohmann::json{{1, 0, 0, "x"}, {0, 1, 0, 0}, {0, 0, 1, 0}},
+                   "has an entry that is not a number"}}) {
+    SCOPED_TRACE(tag);
+    const CheckReport r = run(write_folder(tag, part, parts, {0}, [&](nlohmann::json& j) {
+      with_motions(up_to_model)(j);
+      j["parts"][0]["molds"]["up_to_model"] = bad;
+    }));
+    expect_failures(r, {"contract", "molds"});
+    const std::string& summary = item(r, "contract").summary;
+    EXPECT_NE(summary.find("parts[0] molds.up_to_model " + std::string(reason)), std::string::npos)
+        << summary;
+    EXPECT_EQ(summary.find('\n'), std::string::npos);
+  }
 }
 
 TEST(Check, OrderThatIsNotAPermutationFailsContract) {

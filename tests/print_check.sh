@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
-# Checks that the mold halves of an output folder are ready to print: admesh (Debian package
-# admesh) must find no defect in any mold STL, and PrusaSlicer (Debian package prusa-slicer) must
-# slice one half of each mold without error.
+# Checks that the mold halves of an output folder are ready to print as they are written: admesh
+# (Debian package admesh) must find no defect in any mold STL, and PrusaSlicer (Debian package
+# prusa-slicer) must slice one half of each mold, unrotated, without an error or a warning. The
+# slicer's bed is made as large as the half (its default, 200 x 200 x 200 mm, is smaller than the
+# molds of large parts): this checks the mesh, and each line gives the half's size to compare with
+# a printer's.
 #
 #   tests/print_check.sh OUTDIR [--slice all|first|none]
 #
@@ -21,8 +24,10 @@ halves=("$outdir"/molds/*.stl)
 passed=0 failed=0
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
+declare -A size  # per file: "X Y Z" extents in mm, from admesh
 for f in "${halves[@]}"; do
   report="$(admesh "$f" 2>&1)"
+  size[$f]="$(printf '%s\n' "$report" | awk -F'[=,]' '/^Min [XYZ] =/ { printf "%.1f ", $4 - $2 }')"
   # Defects admesh finds (and would repair): each must be zero in the "Original" column.
   problems=""
   for key in "Facets with 1 disconnected edge" "Facets with 2 disconnected edges" \
@@ -34,7 +39,7 @@ for f in "${halves[@]}"; do
   done
   parts="$(printf '%s\n' "$report" | grep -m1 'Number of parts' | sed 's/^Number of parts *: *\([0-9]*\).*/\1/')"
   if [ -z "$problems" ]; then
-    echo "PASS admesh $f ($parts shell(s))"
+    echo "PASS admesh $f ($parts shell(s), ${size[$f]% } mm)"
     passed=$((passed + 1))
   else
     echo "FAIL admesh $f:$problems"
@@ -52,11 +57,24 @@ case "$slice" in
 esac
 for f in "${to_slice[@]}"; do
   gcode="$tmp/$(basename "$f" .stl).gcode"
-  if prusa-slicer --export-gcode --output "$gcode" "$f" >"$tmp/slicer.log" 2>&1 && [ -s "$gcode" ]; then
+  read -r sx sy sz <<<"${size[$f]:-0 0 0}"
+  bed_x="$(awk -v s="$sx" 'BEGIN { print int(s) + 20 }')"
+  bed_y="$(awk -v s="$sy" 'BEGIN { print int(s) + 20 }')"
+  height="$(awk -v s="$sz" 'BEGIN { print int(s) + 10 }')"
+  # --dont-arrange: sliced where the file puts it (centred on the bed's origin, which --center
+  # moves to the bed's middle), not laid out anew.
+  prusa-slicer --export-gcode --output "$gcode" --dont-arrange \
+    --bed-shape "0x0,${bed_x}x0,${bed_x}x${bed_y},0x${bed_y}" --center "$((bed_x / 2)),$((bed_y / 2))" \
+    --max-print-height "$height" "$f" >"$tmp/slicer.log" 2>&1
+  status=$?
+  # Anything but the start-up trace, progress lines and the closing line is a complaint.
+  complaint="$(grep -v -e '^\[.*\] \[trace\]' -e '^[0-9]* => ' -e '^Slicing result exported' \
+               "$tmp/slicer.log" | head -1)"
+  if [ "$status" -eq 0 ] && [ -s "$gcode" ] && [ -z "$complaint" ]; then
     echo "PASS prusa-slicer $f ($(grep -c '^G1' "$gcode") moves)"
     passed=$((passed + 1))
   else
-    echo "FAIL prusa-slicer $f: $(grep -iv '^\[\|=>' "$tmp/slicer.log" | tail -1)"
+    echo "FAIL prusa-slicer $f (exit $status): ${complaint:-$(tail -1 "$tmp/slicer.log")}"
     failed=$((failed + 1))
   fi
 done

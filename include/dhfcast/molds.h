@@ -50,11 +50,20 @@ struct FaceSplitStats {
   double parting_line_mm = 0.0;   // length of the boundary between the two sides
 };
 
+// A rigid motion [R | t]: a point p goes to R * p + t (R a rotation).
+using RigidMotion = Eigen::Matrix<double, 3, 4>;
+
 // The mold of one part. When `error` is not empty the halves are empty and nothing else is set.
+// Each half is in its print frame: its flat outer block face (normal +d for up, -d for down)
+// lies on z = 0 facing -z with the rest above it, the block's gravity_up x d axis along x and its
+// footprint centred on x = y = 0. Everything else (channels, keys, directions) is in the model's
+// frame.
 struct Mold {
   std::int32_t part = 0;
   TriMesh up;    // pulled off the cast part along +d
   TriMesh down;  // pulled off along -d
+  // Take each half from its print frame back to where it sits around the part.
+  RigidMotion up_to_model = RigidMotion::Identity(), down_to_model = RigidMotion::Identity();
   Vec3 gravity_up = Vec3::UnitY();  // unit, orthogonal to d: the mold stands with this up
   Vec3 block_mm = Vec3::Zero();     // block size along (gravity_up x d, gravity_up, d)
   std::vector<MoldChannel> sprues, vents;

@@ -222,7 +222,8 @@ CheckItem check_molds(const CheckContext& c) {
     }
     if (!part.mold_up || !part.mold_down) {
       if (first.empty())
-        first = part_name(part) + ": its mold halves could not be read (see solids)";
+        first = part_name(part) +
+                ": its mold halves could not be read or placed (see solids, contract)";
       continue;
     }
     Random random(stream_seed(o.seed, kMoldStream + 16 * (i + 1)));

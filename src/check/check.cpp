@@ -67,6 +67,9 @@ void validate_options(const CheckOptions& o) {
 
 // --- what decomposition.json says, as far as it can be read ---
 
+// A rigid motion [R | t]: p goes to R * p + t.
+using Motion = Eigen::Matrix<double, 3, 4>;
+
 struct PartEntry {
   std::int32_t id = -1;
   std::string mesh;
@@ -74,6 +77,8 @@ struct PartEntry {
   double volume_mm3 = std::numeric_limits<double>::quiet_NaN();
   std::string mold_up, mold_down;  // both empty when the part lists no molds
   std::string mold_error;          // "molds": {"error": ...}
+  // From each half's STL to the model's frame; nullopt when decomposition.json's is invalid.
+  std::optional<Motion> up_to_model = Motion::Identity(), down_to_model = Motion::Identity();
   std::vector<detail::CheckedPart::Channel> channels;
   std::int32_t sprues = 0, vents = 0, keys = 0;
 };
@@ -98,6 +103,26 @@ std::optional<Vec3> vec3(const json& j) {
   }
   if (!v.allFinite()) return std::nullopt;
   return v;
+}
+
+// Reads a half's "up_to_model" / "down_to_model": three rows [r0, r1, r2, t] of finite numbers
+// whose 3x3 part is a rotation. Returns what is wrong, or "".
+std::string read_motion(const json& j, Motion& m) {
+  if (!j.is_array() || j.size() != 3) return "is not 3 rows [r, r, r, t]";
+  for (int r = 0; r < 3; ++r) {
+    if (!j[r].is_array() || j[r].size() != 4) return "is not 3 rows [r, r, r, t]";
+    for (int c = 0; c < 4; ++c) {
+      if (!j[r][c].is_number()) return "has an entry that is not a number";
+      m(r, c) = j[r][c].get<double>();
+    }
+  }
+  if (!m.allFinite()) return "has an entry that is not finite";
+  const Eigen::Matrix3d rotation = m.leftCols<3>();
+  const double off =
+      (rotation.transpose() * rotation - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  if (off > 1e-6) return format("is not rigid: its rotation is off orthonormal by %.3g", off);
+  if (rotation.determinant() < 0) return "is a reflection, not a rotation";
+  return {};
 }
 
 std::string read_file(const fs::path& path) {
@@ -191,6 +216,16 @@ FolderContents read_contents(const fs::path& outdir, const std::string& text) {
         p.mold_down = m["down"].get<std::string>();
         file_exists(p.mold_up, where + " mold");
         file_exists(p.mold_down, where + " mold");
+        // Halves are written in their print frames; a folder without the motions (written
+        // before they were) has them in the model's frame.
+        for (auto [key, motion] : {std::pair{"up_to_model", &p.up_to_model},
+                                   std::pair{"down_to_model", &p.down_to_model}}) {
+          if (!m.contains(key)) continue;
+          const std::string wrong = read_motion(m[key], **motion);
+          if (wrong.empty()) continue;
+          problem(where + " molds." + key + " " + wrong);
+          motion->reset();
+        }
         for (const char* kind : {"sprues", "vents"}) {
           if (!m.contains(kind)) continue;
           if (!m[kind].is_array()) {
@@ -287,7 +322,8 @@ struct LoadedMesh {
   Kind kind = Kind::Part;
   bool is_part() const { return kind == Kind::Part; }
   std::int32_t part = 0;  // index into FolderContents::parts
-  std::optional<TriMesh> mesh;
+  std::optional<TriMesh> mesh;                          // mold halves: moved to the model's frame
+  std::optional<Motion> to_model = Motion::Identity();  // mold halves: from the file's frame
   std::string problem;        // why it is not a valid solid ("" when it is)
   double volume_error = 0.0;  // parts: |json - mesh| / |mesh|
   bool volume_ok = true;      // within the tolerance
@@ -344,17 +380,19 @@ std::vector<LoadedMesh> load_meshes(const fs::path& outdir, const FolderContents
   for (std::size_t i = 0; i < c.parts.size(); ++i) {
     const PartEntry& p = c.parts[i];
     const auto part = static_cast<std::int32_t>(i);
-    auto add = [&](const std::string& file, LoadedMesh::Kind kind) {
+    auto add = [&](const std::string& file, LoadedMesh::Kind kind,
+                   const std::optional<Motion>& to_model) {
       LoadedMesh m;
       m.file = file;
       m.kind = kind;
       m.part = part;
+      m.to_model = to_model;
       meshes.push_back(std::move(m));
     };
-    if (!p.mesh.empty()) add(p.mesh, LoadedMesh::Kind::Part);
+    if (!p.mesh.empty()) add(p.mesh, LoadedMesh::Kind::Part, Motion::Identity());
     if (!p.mold_up.empty()) {
-      add(p.mold_up, LoadedMesh::Kind::MoldUp);
-      add(p.mold_down, LoadedMesh::Kind::MoldDown);
+      add(p.mold_up, LoadedMesh::Kind::MoldUp, p.up_to_model);
+      add(p.mold_down, LoadedMesh::Kind::MoldDown, p.down_to_model);
     }
   }
   tbb::parallel_for(std::size_t{0}, meshes.size(), [&](std::size_t i) {
@@ -366,6 +404,8 @@ std::vector<LoadedMesh> load_meshes(const fs::path& outdir, const FolderContents
       return;
     }
     m.problem = m.is_part() ? part_problem(*m.mesh) : mold_problem(*m.mesh);
+    if (m.to_model)
+      for (Vec3& v : m.mesh->vertices) v = m.to_model->leftCols<3>() * v + m.to_model->col(3);
     const double json_volume = c.parts[m.part].volume_mm3;
     if (m.is_part() && std::isfinite(json_volume)) {
       const double v = signed_volume(*m.mesh);
@@ -465,7 +505,8 @@ CheckReport check_output(const CheckOptions& options) {
   // Indices are built in parallel, one mesh each; each is read-only afterwards.
   std::vector<std::optional<detail::SurfaceIndex>> indices(meshes.size());
   tbb::parallel_for(std::size_t{0}, meshes.size(), [&](std::size_t i) {
-    if (usable(meshes[i])) indices[i].emplace(*meshes[i].mesh);
+    // A half that cannot be placed (see contract) is left out like an unreadable one.
+    if (usable(meshes[i]) && meshes[i].to_model) indices[i].emplace(*meshes[i].mesh);
   });
   // Each part's mesh comes first in `meshes`, followed by its mold halves (up, down).
   for (std::size_t i = 0; i < meshes.size(); ++i) {

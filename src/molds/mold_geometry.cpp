@@ -3,6 +3,7 @@
 #include <cmath>
 #include <map>
 #include <numbers>
+#include <numeric>
 
 #include "molds_internal.h"
 
@@ -82,6 +83,34 @@ void canonicalize(TriMesh& mesh) {
   }
   std::sort(mesh.triangles.begin(), mesh.triangles.end());
   mesh.vertices = std::move(vertices);
+}
+
+void keep_shells_on_bed(TriMesh& mesh) {
+  const std::size_t n = mesh.vertices.size();
+  std::vector<std::int32_t> parent(n);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto root = [&](std::int32_t v) {
+    while (parent[v] != v) v = parent[v] = parent[parent[v]];
+    return v;
+  };
+  for (const Tri& t : mesh.triangles)
+    for (int k = 1; k < 3; ++k) parent[root(t[k])] = root(t[0]);
+  std::vector<char> on_bed(n, 0), used(n, 0);
+  for (const Tri& t : mesh.triangles)
+    for (std::int32_t v : t) {
+      used[v] = 1;
+      if (mesh.vertices[v].z() == 0.0) on_bed[root(v)] = 1;
+    }
+  TriMesh kept;
+  std::vector<std::int32_t> remap(n, -1);
+  for (std::size_t v = 0; v < n; ++v)
+    if (used[v] && on_bed[root(static_cast<std::int32_t>(v))]) {
+      remap[v] = static_cast<std::int32_t>(kept.vertices.size());
+      kept.vertices.push_back(mesh.vertices[v]);
+    }
+  for (const Tri& t : mesh.triangles)
+    if (remap[t[0]] >= 0) kept.triangles.push_back({remap[t[0]], remap[t[1]], remap[t[2]]});
+  mesh = std::move(kept);
 }
 
 }  // namespace dhfcast::detail

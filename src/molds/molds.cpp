@@ -276,6 +276,26 @@ void flatten_disc(HeightGrid& g, double xc, double yc, double radius, double hei
         g.h[g.id(i, j)] = height;
 }
 
+// The motion from a half's print frame to the model: print x is the frame's x, and the far face
+// (at local w = far_centre.z(), facing +w for the up half, -w for the down half) lies on z = 0
+// facing -z, centred on the origin. The up half is turned over about x.
+RigidMotion print_to_model(const Frame& f, const Vec3& far_centre, bool up) {
+  const double s = up ? -1.0 : 1.0;
+  RigidMotion m;
+  m << f.x, s * f.y, s * f.w, f.world(far_centre);
+  return m;
+}
+
+// Moves a half from the model into its print frame. The far face's vertices land within a
+// rounding error of z = 0: they are put on it exactly, so the whole face rests on the bed.
+void to_print_frame(TriMesh& m, const RigidMotion& to_model, double hair) {
+  const Eigen::Matrix3d back = to_model.leftCols<3>().transpose();
+  for (Vec3& p : m.vertices) {
+    p = back * (p - to_model.col(3));
+    if (std::abs(p.z()) <= hair) p.z() = 0.0;
+  }
+}
+
 void round_to_float(TriMesh& m) {
   for (Vec3& p : m.vertices)
     for (int k = 0; k < 3; ++k) p[k] = to_float(p[k]);
@@ -357,6 +377,14 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
       best_extent = extent;
     }
   }
+  // No trap (the pouring direction with the fewest has none): the sprue still goes at the
+  // parting line's highest point, where the last air leaves as the cavity fills.
+  if (traps.empty())
+    for (const auto& e : split.parting_edges)
+      for (std::int32_t v : e)
+        if (traps.empty() || cavity.vertices[v].dot(up) > cavity.vertices[traps[0]].dot(up) ||
+            (cavity.vertices[v].dot(up) == cavity.vertices[traps[0]].dot(up) && v < traps[0]))
+          traps.assign(1, v);
   const Frame frame{up.cross(d).normalized(), up, d};
   mold.gravity_up = up;
 
@@ -475,13 +503,25 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
                                  {BooleanOp::Difference, &channels, name + ": down half channels"},
                                  {BooleanOp::Difference, &cavity, name + ": down half"}});
 
-  // --- 7. what is written is what is checked ---
+  // --- 7. each half laid on its flat outer face, to print as it is; what is written (rounded
+  // to float there) is what is checked ---
+  const double cx = g.x0 + 0.5 * g.nx * g.s, cy = g.y0 + 0.5 * g.ny * g.s;
+  mold.up_to_model = print_to_model(frame, Vec3(cx, cy, w_top), true);
+  mold.down_to_model = print_to_model(frame, Vec3(cx, cy, w_bottom), false);
+  to_print_frame(mold.up, mold.up_to_model, hair);
+  to_print_frame(mold.down, mold.down_to_model, hair);
   for (auto [half, label] : {std::pair{&mold.up, "up"}, std::pair{&mold.down, "down"}}) {
     canonicalize(*half);  // the clean-up visits triangles in order: make the order the geometry's
     const std::string problem = finish_solid(*half);
     canonicalize(*half);
     if (!problem.empty())
       throw Error(ErrorCode::BooleanFailed, name + ": " + label + " half " + problem);
+    // Where the parting surface dips past the part near its outline, the booleans leave chips
+    // of the block loose in the cavity: they would neither print (nothing under them) nor come
+    // out with the half. Only the shell resting on the bed is the half.
+    keep_shells_on_bed(*half);
+    if (half->triangles.empty())
+      throw Error(ErrorCode::Internal, name + ": " + label + " half has no face on z = 0");
     const MeshDiagnostics diag_half = validate_mesh(weld_exact(*half));
     if (!diag_half.ok())
       throw Error(ErrorCode::BooleanFailed,

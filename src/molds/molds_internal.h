@@ -57,10 +57,6 @@ enum class BooleanOp { Union, Difference };
 // is a 2-manifold surface (a part read back from an STL is welded there).
 TriMesh unweld_nonmanifold(const TriMesh& mesh);
 
-// `mesh` with its vertices (and edges) duplicated where the surface touches itself, so that it
-// is a 2-manifold surface (a part read back from an STL is welded there).
-TriMesh unweld_nonmanifold(const TriMesh& mesh);
-
 // a op b for closed, outward, non-self-intersecting meshes (a soup of disjoint closed
 // components is fine); b is checked for self-intersections where it meets a. Throws
 // Error{BooleanFailed} naming `what` when b intersects itself or CGAL gives no solid.
@@ -128,5 +124,9 @@ void canonicalize(TriMesh& mesh);
 
 // Welds vertices with identical coordinates (what reading an STL does).
 TriMesh weld_exact(const TriMesh& mesh);
+
+// Keeps the shells (connected components) that have a vertex on the plane z = 0, and the
+// vertices they use, in their order.
+void keep_shells_on_bed(TriMesh& mesh);
 
 }  // namespace dhfcast::detail

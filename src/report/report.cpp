@@ -33,6 +33,14 @@ std::string mold_file(std::int32_t id, const char* half) {
   return name;
 }
 
+// Row by row: [[r00, r01, r02, t0], [r10, ...], [r20, ...]].
+ordered_json motion(const RigidMotion& m) {
+  ordered_json rows = ordered_json::array();
+  for (int r = 0; r < 3; ++r)
+    rows.push_back(ordered_json::array({m(r, 0), m(r, 1), m(r, 2), m(r, 3)}));
+  return rows;
+}
+
 ordered_json mold_json(const Mold& m) {
   if (!m.error.empty()) return {{"error", m.error}};
   auto channels = [](const std::vector<MoldChannel>& list) {
@@ -50,6 +58,8 @@ ordered_json mold_json(const Mold& m) {
   const FaceSplitStats& s = m.split;
   return {{"up", mold_file(m.part, "up")},
           {"down", mold_file(m.part, "down")},
+          {"up_to_model", motion(m.up_to_model)},
+          {"down_to_model", motion(m.down_to_model)},
           {"gravity_up", vec(m.gravity_up)},
           {"block_mm", vec(m.block_mm)},
           {"sprues", channels(m.sprues)},
