@@ -67,6 +67,12 @@ class ProgressPrinter {
   int last_percent_ = -1;
 };
 
+// Size of one unit of --units in mm (CLI11 has checked the name).
+double units_to_mm(const std::string& units) {
+  const std::map<std::string, double> mm = {{"mm", 1.0}, {"cm", 10.0}, {"m", 1000.0}, {"in", 25.4}};
+  return mm.at(units);
+}
+
 struct CliOptions {
   std::string input, outdir;
   double scale = 1.0;
@@ -98,11 +104,9 @@ int run_decompose(const CliOptions& cli) {
   validate_options(cli.decompose);
   check_output_location(cli.outdir, cli.force);
 
-  const std::map<std::string, double> units = {{"mm", 1.0}, {"cm", 10.0}, {"m", 1000.0},
-                                               {"in", 25.4}};
   LoadOptions load;
   load.scale = cli.scale;
-  load.units_to_mm = units.at(cli.units);
+  load.units_to_mm = units_to_mm(cli.units);
   const LoadedSolid solid = load_solid(cli.input, load);
   const double load_s = std::chrono::duration<double>(Clock::now() - t_start).count();
   const Box3 bbox = bounding_box(solid.mesh.vertices);
@@ -256,7 +260,14 @@ int main(int argc, char** argv) {
                "assembly, molds, fidelity");
   chk->add_option("outdir", check_opts.outdir, "Folder written by dhfcast decompose")->required();
   chk->add_option("--input", check_opts.input_mesh,
-                  "The decomposed mesh (mm): enables the gap, outside and fidelity figures");
+                  "The decomposed mesh: enables the gap, outside and fidelity figures");
+  double check_scale = 1.0;
+  std::string check_units = "mm";
+  chk->add_option("--scale", check_scale, "As given to decompose: multiplies --input's coordinates")
+      ->capture_default_str();
+  chk->add_option("--units", check_units, "As given to decompose: units of the --input file")
+      ->check(CLI::IsMember({"mm", "cm", "m", "in"}))
+      ->capture_default_str();
   chk->add_flag("--json", check_json, "Print all figures as JSON");
   chk->add_option("--epsilon", check_opts.epsilon_mm, "Undercut / contact tolerance in mm")
       ->capture_default_str();
@@ -306,6 +317,7 @@ int main(int argc, char** argv) {
       if (check_threads > 0)
         threads = std::make_unique<oneapi::tbb::global_control>(
             oneapi::tbb::global_control::max_allowed_parallelism, check_threads);
+      check_opts.input_scale = check_scale * units_to_mm(check_units);
       return run_check(check_opts, check_json);
     }
   } catch (const Error& e) {

@@ -202,6 +202,19 @@ TEST(Cli, PartsAreCutFromTheInputUnlessTetSurfaceIsAsked) {
   json << std::ifstream(dir + "/tets/decomposition.json").rdbuf();
   EXPECT_NE(json.str().find("\"exact_outer_surface\": false"), std::string::npos);
   EXPECT_EQ(json.str().find("\"outer_surface_cut\""), std::string::npos);
+
+  // check scales --input as decompose did; unscaled, the volumes disagree and it says so.
+  const RunResult unscaled = run("check " + dir + "/exact --input " + path);
+  EXPECT_EQ(unscaled.exit_code, 3);
+  EXPECT_NE(unscaled.err.find("--scale"), std::string::npos) << unscaled.err;
+  const std::string report = dir + "/check.txt";
+  std::system((test::cli_path() + " check " + dir + "/exact --input " + path + " --scale 50 > " +
+               report)
+                  .c_str());
+  std::stringstream text;
+  text << std::ifstream(report).rdbuf();
+  EXPECT_NE(text.str().find("PASS coverage"), std::string::npos) << text.str();
+  EXPECT_NE(text.str().find("PASS fidelity"), std::string::npos) << text.str();
 }
 
 }  // namespace

@@ -49,6 +49,7 @@ void validate_options(const CheckOptions& o) {
     if (!ok) throw Error(ErrorCode::InvalidOptions, std::string("check: ") + what);
   };
   require(o.epsilon_mm > 0 && std::isfinite(o.epsilon_mm), "epsilon_mm must be > 0");
+  require(o.input_scale > 0 && std::isfinite(o.input_scale), "input_scale must be > 0");
   require(o.json_volume_tolerance >= 0, "json_volume_tolerance must be >= 0");
   require(o.max_volume_error >= 0, "max_volume_error must be >= 0");
   require(o.coverage_samples > 0, "coverage_samples must be > 0");
@@ -476,10 +477,22 @@ CheckReport check_output(const CheckOptions& options) {
 
   detail::CheckContext context;
   context.options = options;
-  if (!options.input_mesh.empty()) context.input.emplace(load_solid(options.input_mesh).mesh);
-
   CheckReport report;
   const FolderContents contents = read_contents(outdir, text);
+  if (!options.input_mesh.empty()) {
+    LoadOptions load;
+    load.scale = options.input_scale;
+    const TriMesh input = load_solid(options.input_mesh, load).mesh;
+    // A mesh decomposed with --scale or --units and checked without them would give figures
+    // that mean nothing.
+    const double volume = signed_volume(input), decomposed = contents.input_volume_mm3;
+    if (decomposed > 0 && std::abs(volume - decomposed) > 1e-3 * decomposed)
+      throw Error(ErrorCode::InvalidInput,
+                  format("%s: volume %.6g mm3, but the folder was decomposed from a solid of "
+                         "%.6g mm3 (give check the --scale and --units given to decompose)",
+                         options.input_mesh.c_str(), volume, decomposed));
+    context.input.emplace(input);
+  }
   report.items.push_back(contract_item(contents));
   const std::vector<LoadedMesh> meshes = load_meshes(outdir, contents, options);
   report.items.push_back(solids_item(meshes));
