@@ -206,6 +206,23 @@ bool remove_caps_once(TriMesh& mesh, std::vector<std::int32_t>& origin) {
   return removed;
 }
 
+// Where a part touches itself at a vertex (one position, several vertices), each copy moves a
+// hair into its own fan, as CGAL takes touching for crossing. The neighbours keep the vertex
+// where it was: the parts leave a hair-wide gap there.
+void separate_pinches(TriMesh& m, double hair) {
+  std::map<Vec3, std::vector<std::int32_t>, VecLess> at;
+  for (std::size_t v = 0; v < m.vertices.size(); ++v)
+    at[m.vertices[v]].push_back(static_cast<std::int32_t>(v));
+  std::vector<Vec3> toward(m.vertices.size(), Vec3::Zero());  // to its fan's other corners
+  for (const Tri& t : m.triangles)
+    for (int k = 0; k < 3; ++k)
+      toward[t[k]] += m.vertices[t[(k + 1) % 3]] + m.vertices[t[(k + 2) % 3]] - 2 * m.vertices[t[k]];
+  for (const auto& [p, copies] : at)
+    if (copies.size() > 1)
+      for (std::int32_t v : copies)
+        if (toward[v].norm() > 0.0) m.vertices[v] = p + hair * toward[v].normalized();
+}
+
 // solid ∩ region, with the origins of the result's faces; nullopt when CGAL rejects an operand
 // (a region that intersects or touches itself).
 std::optional<std::pair<TriMesh, std::vector<std::int32_t>>> intersect(
@@ -281,8 +298,12 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   const std::size_t n = parts.size();
   using Pairs = std::vector<std::array<std::int32_t, 2>>;
   std::vector<Pairs> own(n);
-  tbb::parallel_for(std::size_t{0}, n,
-                    [&](std::size_t i) { own[i] = intersecting_triangles(parts[i].mesh, 1); });
+  const double hair = 1e-5 * bounding_box(solid.vertices).diagonal();
+  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
+    TriMesh separated = parts[i].mesh;
+    separate_pinches(separated, hair);
+    own[i] = intersecting_triangles(separated, 1);
+  });
   // Where moving folds a region through itself, those vertices move half as far, in every part
   // (shared vertices move alike); pairs that crossed before moving are the part's own.
   std::vector<TriMesh> regions(n);
@@ -290,6 +311,7 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
     regions[i] = parts[i].mesh;
     for (Vec3& v : regions[i].vertices)
       if (const auto d = dirs.find(v); d != dirs.end()) v += push.at(v) * d->second;
+    separate_pinches(regions[i], hair);
   };
   constexpr int kHalvings = 12;
   std::vector<char> folds(n, 0);
