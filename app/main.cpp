@@ -67,11 +67,9 @@ class ProgressPrinter {
   int last_percent_ = -1;
 };
 
-// Size of one unit of --units in mm (CLI11 has checked the name).
-double units_to_mm(const std::string& units) {
-  const std::map<std::string, double> mm = {{"mm", 1.0}, {"cm", 10.0}, {"m", 1000.0}, {"in", 25.4}};
-  return mm.at(units);
-}
+// The names --units takes, and the size of one unit in mm.
+const std::map<std::string, double> kUnitsToMm = {
+    {"mm", 1.0}, {"cm", 10.0}, {"m", 1000.0}, {"in", 25.4}};
 
 struct CliOptions {
   std::string input, outdir;
@@ -106,7 +104,7 @@ int run_decompose(const CliOptions& cli) {
 
   LoadOptions load;
   load.scale = cli.scale;
-  load.units_to_mm = units_to_mm(cli.units);
+  load.units_to_mm = kUnitsToMm.at(cli.units);
   const LoadedSolid solid = load_solid(cli.input, load);
   const double load_s = std::chrono::duration<double>(Clock::now() - t_start).count();
   const Box3 bbox = bounding_box(solid.mesh.vertices);
@@ -234,7 +232,7 @@ int main(int argc, char** argv) {
   dec->add_option("--scale", cli.scale, "Multiply the input's coordinates by this")
       ->capture_default_str();
   dec->add_option("--units", cli.units, "Units of the input file")
-      ->check(CLI::IsMember({"mm", "cm", "m", "in"}))
+      ->check(CLI::IsMember(kUnitsToMm))
       ->capture_default_str();
   dec->add_option("--threads", cli.threads, "Worker threads (0: all cores)")
       ->check(CLI::NonNegativeNumber);
@@ -266,7 +264,7 @@ int main(int argc, char** argv) {
   chk->add_option("--scale", check_scale, "As given to decompose: multiplies --input's coordinates")
       ->capture_default_str();
   chk->add_option("--units", check_units, "As given to decompose: units of the --input file")
-      ->check(CLI::IsMember({"mm", "cm", "m", "in"}))
+      ->check(CLI::IsMember(kUnitsToMm))
       ->capture_default_str();
   chk->add_flag("--json", check_json, "Print all figures as JSON");
   chk->add_option("--epsilon", check_opts.epsilon_mm, "Undercut / contact tolerance in mm")
@@ -317,7 +315,7 @@ int main(int argc, char** argv) {
       if (check_threads > 0)
         threads = std::make_unique<oneapi::tbb::global_control>(
             oneapi::tbb::global_control::max_allowed_parallelism, check_threads);
-      check_opts.input_scale = check_scale * units_to_mm(check_units);
+      check_opts.input_scale = check_scale * kUnitsToMm.at(check_units);
       return run_check(check_opts, check_json);
     }
   } catch (const Error& e) {

@@ -161,51 +161,6 @@ Vec3 rounded(const EK::Point_3& p) {
   return Vec3(f(p.x()), f(p.y()), f(p.z()));
 }
 
-// Caps: triangles of the outer surface flat to float precision, one corner on the opposite
-// edge. Rounding can tilt them through a neighbour, so the triangle across that edge is split at
-// the corner instead and the cap goes. Interfaces are left alone: a neighbour holds them too.
-// One pass; returns whether it removed any (a split triangle waits for the next pass).
-bool remove_caps_once(TriMesh& mesh, std::vector<std::int32_t>& origin) {
-  constexpr double kFlat = 1e-6;  // corner's distance from the edge per unit of edge length
-  std::map<std::pair<std::int32_t, std::int32_t>, std::size_t> across;  // directed edge -> tri
-  for (std::size_t t = 0; t < mesh.triangles.size(); ++t)
-    for (int k = 0; k < 3; ++k) across[{mesh.triangles[t][k], mesh.triangles[t][(k + 1) % 3]}] = t;
-  std::vector<char> touched(mesh.triangles.size(), 0), gone(mesh.triangles.size(), 0);
-  const std::size_t n = mesh.triangles.size();
-  for (std::size_t t = 0; t < n; ++t) {
-    if (touched[t] || origin[t] >= 0) continue;
-    for (int k = 0; k < 3; ++k) {
-      const std::int32_t m = mesh.triangles[t][k], a = mesh.triangles[t][(k + 1) % 3],
-                         b = mesh.triangles[t][(k + 2) % 3];
-      const Vec3 ab = mesh.vertices[b] - mesh.vertices[a], am = mesh.vertices[m] - mesh.vertices[a];
-      const double s = am.dot(ab) / ab.squaredNorm();
-      if (!(s > 0.0 && s < 1.0) || am.cross(ab).norm() > kFlat * ab.squaredNorm()) continue;
-      const auto o = across.find({b, a});
-      if (o == across.end() || touched[o->second] || origin[o->second] >= 0) continue;
-      const Tri& other = mesh.triangles[o->second];
-      std::int32_t c = -1;
-      for (std::int32_t v : other)
-        if (v != a && v != b) c = v;
-      if (c == m) continue;
-      mesh.triangles[o->second] = {b, m, c};
-      mesh.triangles.push_back({m, a, c});
-      origin.push_back(origin[o->second]);
-      touched[o->second] = touched[t] = gone[t] = 1;
-      break;
-    }
-  }
-  std::size_t kept = 0;
-  for (std::size_t t = 0; t < mesh.triangles.size(); ++t)
-    if (t >= n || !gone[t]) {
-      mesh.triangles[kept] = mesh.triangles[t];
-      origin[kept++] = origin[t];
-    }
-  const bool removed = kept < mesh.triangles.size();
-  mesh.triangles.resize(kept);
-  origin.resize(kept);
-  return removed;
-}
-
 // Where a part touches itself at a vertex (one position, several vertices), each copy moves a
 // hair into its own fan, as CGAL takes touching for crossing. The neighbours keep the vertex
 // where it was: the parts leave a hair-wide gap there.
@@ -274,8 +229,6 @@ std::optional<std::pair<TriMesh, std::vector<std::int32_t>>> intersect(
     mesh.triangles.push_back(t);
     origin.push_back(out_origin[f]);
   }
-  for (int pass = 0; pass < 8 && remove_caps_once(mesh, origin); ++pass) {
-  }
   return std::make_pair(std::move(mesh), std::move(origin));
 }
 
@@ -289,7 +242,8 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   const PointMap dirs = input_normals(solid, outer);
   // Each outer vertex moves out twice as far as the input sticks out near it, plus a margin so
   // that no face of a region lies on the input surface.
-  const double margin = 1e-4 * bounding_box(solid.vertices).diagonal();
+  const double diagonal = bounding_box(solid.vertices).diagonal();
+  const double margin = 1e-4 * diagonal;
   LengthMap push = local_reach(solid, outer);
   for (auto& [p, d] : push) d = 2.0 * d + margin;
 
@@ -298,7 +252,7 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   const std::size_t n = parts.size();
   using Pairs = std::vector<std::array<std::int32_t, 2>>;
   std::vector<Pairs> own(n);
-  const double hair = 1e-5 * bounding_box(solid.vertices).diagonal();
+  const double hair = 1e-5 * diagonal;
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
     TriMesh separated = parts[i].mesh;
     separate_pinches(separated, hair);
