@@ -359,8 +359,10 @@ TEST(AbsorbSandwichedTets, TongueInsideAnotherPartsColumnJoinsIt) {
   const SandwichRepair repair =
       absorb_sandwiched_tets(g.mesh, label, zeros(g), {{kUp, kSide}}, kAllowAll);
   EXPECT_TRUE(repair.converged);
+  EXPECT_EQ(repair.order, "largest first");
   EXPECT_EQ(repair.moved_tets, tongue_tets);
   EXPECT_EQ(repair.stuck_tets, 0);
+  EXPECT_EQ(repair.worst_share, 0.0);
   EXPECT_EQ(repair.rounds, 1);
   EXPECT_EQ(std::count(label.begin(), label.end(), 1), 0);
   ASSERT_EQ(repair.moves.size(), 1u);
@@ -399,9 +401,13 @@ TEST(AbsorbSandwichedTets, TetsTheDirectionDoesNotAllowStayAndAreCounted) {
   const SandwichRepair repair = absorb_sandwiched_tets(
       g.mesh, label, zeros(g), {{kUp, kSide}},
       [&](std::int32_t t, std::int32_t, std::int32_t l) { return before[t] == l; });
-  EXPECT_TRUE(repair.converged);
+  EXPECT_FALSE(repair.converged);
+  EXPECT_EQ(repair.order, "segmentation");
   EXPECT_EQ(repair.moved_tets, 0);
   EXPECT_EQ(repair.stuck_tets, 6 * 4 * 4 * 2);
+  // The whole tongue lies within part 0: its share of part 0's volume (cells of nearly equal
+  // volume, 32 of the 184 cells that are part 0's).
+  EXPECT_NEAR(repair.worst_share, 32.0 / 184.0, 0.01);
   EXPECT_EQ(label, before);
 }
 

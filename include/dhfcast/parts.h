@@ -37,10 +37,11 @@ std::vector<Part> extract_parts(const TetMesh& tets, const std::vector<std::int3
 
 // Options for absorb_sandwiched_tets().
 struct SandwichOptions {
-  std::int32_t max_rounds = 8;  // rounds of relabeling; each moves every sandwiched tet it finds
-  // Parts the repair may add (a part that loses tets can fall apart): a labeling with more
-  // parts than at the start plus this is never returned.
-  std::int32_t max_extra_parts = 1;
+  std::int32_t max_rounds = 40;  // rounds per part (each fills or cuts); 0: only count
+  // A piece a part falls into that is smaller than this share of the solid's volume goes to a
+  // neighbouring part even where that part's direction does not allow all of it: a part that
+  // small is not worth a mold of its own.
+  double tiny_piece_share = 0.01;
 };
 
 // Tets that absorb_sandwiched_tets() moved from one label to another, within one region.
@@ -53,18 +54,19 @@ struct SandwichMove {
 
 // What absorb_sandwiched_tets() did.
 struct SandwichRepair {
-  std::int32_t rounds = 0;      // rounds that led to the labeling kept
-  bool converged = false;       // nothing left to move in the labeling kept
+  // Which labeling was kept: "segmentation" (the start), "largest first" or "smallest first".
+  std::string order = "segmentation";
+  std::int32_t rounds = 0;      // the most rounds a part took in the labeling kept
+  bool converged = false;       // no tet is sandwiched in the labeling kept
   std::int32_t moved_tets = 0;  // tets whose label changed (pieces below included)
   double moved_volume_mm3 = 0.0;
-  // Tets still sandwiched in the labeling kept: no sandwiching part's direction allows them,
-  // they moved once already (a tet moves at most once, so two parts cannot trade it back and
-  // forth), they do not touch the part, or the rounds ran out.
+  // Tets still sandwiched in the labeling kept, and the largest volume of them between two tets
+  // of one part, as a share of that part's volume (the part is not a DHF there).
   std::int32_t stuck_tets = 0;
-  // Pieces a part fell into when it lost tets, each moved whole into a neighbouring part whose
-  // direction allows all of it, and their tets. Where a piece fits no neighbour, the moves out
-  // of that part in that round are undone instead.
-  std::int32_t merged_pieces = 0, merged_tets = 0;
+  double worst_share = 0.0;
+  // Pieces a part fell into when it lost tets that went whole to a neighbour, and their tets;
+  // of those, the tets the neighbour's direction does not allow (tiny pieces only).
+  std::int32_t merged_pieces = 0, merged_tets = 0, forced_tets = 0;
   std::vector<SandwichMove> moves;  // summed by (region, from_label, to_label), in that order
 };
 
@@ -75,20 +77,25 @@ using TetAllowsLabel =
 
 // Makes the parts double height fields at the tet level (the label-level half of paper §4.3.1).
 // A part P (a face-connected component of equal (region, label), as in extract_parts()) is not
-// a DHF along its direction d where a line along d meets P, leaves it into another part and
-// meets P again inside the same stretch of solid: the tets in between lie in P's infeasible
-// volume. A tet T of another part whose barycentre's line along d, walked through the tet mesh
-// until it leaves the solid, meets P's tets both before and after T is given to P (P's label),
-// when `allows` says T may take it; the largest such P wins (ties: its smallest tet). Such a T
-// is in the same stretch of solid as points of P that are accessible along d, so it is usually
-// accessible too. Rounds repeat on the new components until none moves a tet or
-// opts.max_rounds is reached. Moves can sandwich other tets or split parts, so the labeling
-// returned is the one, among the start and the rounds' results, with the fewest sandwiched tets
-// and at most opts.max_extra_parts more parts than at the start. Only tets of the same region
-// are exchanged.
+// a DHF along its direction d where a line along d meets P, leaves it and meets P again inside
+// the same stretch of solid: the tets in between lie in P's infeasible volume. Lines are those
+// through tet barycentres, walked through the tet mesh until they leave the solid.
+// The parts settle one at a time and then keep their tets, except the ends of their columns.
+// A part P settling fills: tets of parts not settled yet (or at the end of a settled part's
+// column along its direction, when that opens no gap in it), that `allows` gives P's label,
+// which reach P along d and -d through such tets only, and that touch P through them, join P.
+// When nothing is left to fill, P cuts: its tets beyond a gap it may not fill leave it, on the
+// side of the gap with less volume, each face-connected piece whole to a neighbouring part that
+// allows all of it and, if settled, gains no sandwich; tets P gave up never come back. Rounds
+// repeat until no gap is left, nothing moves, or opts.max_rounds. Afterwards, every piece a part
+// fell into other than its largest goes whole to such a neighbour, and a piece under
+// opts.tiny_piece_share of the solid to the neighbour whose direction allows most of it.
+// Which parts settle first matters: largest first and smallest first are both tried, and the
+// labeling kept, among those and the start, has the smallest worst_share, then fewest parts.
+// Only tets of the same region are exchanged.
 // Deterministic: the result does not depend on the thread count.
 // Pre: tets has adjacency; label/region as for extract_parts(). Throws Error{InvalidOptions}
-// when max_rounds < 0 or max_extra_parts < 0, Error{Internal} on mismatched sizes.
+// when max_rounds < 0 or tiny_piece_share is not in [0, 1], Error{Internal} on mismatched sizes.
 SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int32_t>& label,
                                       const std::vector<std::int32_t>& region,
                                       const std::vector<std::vector<Vec3>>& directions,
@@ -156,8 +163,8 @@ void smooth_interfaces(const TetMesh& tets, std::vector<Part>& parts, const TetA
 
 // What cut_parts_from_solid() did.
 struct SolidCut {
-  double push_mm = 0.0;         // how far the regions' outer surfaces were moved out
-  std::vector<bool> part_cut;   // per part: cut from the solid (else left as a union of tets)
+  double push_mm = 0.0;              // how far the regions' outer surfaces were moved out
+  std::vector<bool> part_cut;        // per part: cut from the solid (else left as a union of tets)
   std::vector<std::string> problem;  // per part: why it was not cut, "" when it was
   // Outer triangles of the moved regions that still lie inside the solid (the input surface
   // sticks out of the region there by more than push_mm); 0 when the parts cover the solid.

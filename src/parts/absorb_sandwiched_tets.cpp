@@ -17,9 +17,10 @@ namespace dhfcast {
 namespace {
 
 // Calls visit(u) for every tet u the ray x + s * d, s > 0, enters after tet t, until it leaves
-// the tet mesh. Each step leaves the current tet through the face whose plane the ray reaches
-// first among those it points out of, so every step makes progress even when rounding puts x
-// slightly off the entry face; the step cap guards against cycling on degenerate tets.
+// the tet mesh or visit returns false. Each step leaves the current tet through the face whose
+// plane the ray reaches first among those it points out of, so every step makes progress even
+// when rounding puts x slightly off the entry face; the step cap guards against cycling on
+// degenerate tets.
 template <class Visit>
 void walk_line(const TetMesh& tets, std::int32_t t, Vec3 x, const Vec3& d, Visit&& visit) {
   const std::size_t max_steps = tets.tets.size();
@@ -29,8 +30,8 @@ void walk_line(const TetMesh& tets, std::int32_t t, Vec3 x, const Vec3& d, Visit
     double best = INFINITY;
     for (int i = 0; i < 4; ++i) {
       const Vec3& a = tets.vertices[k[kTetFaces[i][0]]];
-      const Vec3 n = (tets.vertices[k[kTetFaces[i][1]]] - a)
-                         .cross(tets.vertices[k[kTetFaces[i][2]]] - a);
+      const Vec3 n =
+          (tets.vertices[k[kTetFaces[i][1]]] - a).cross(tets.vertices[k[kTetFaces[i][2]]] - a);
       const double along = n.dot(d);
       if (!(along > 0.0)) continue;
       const double s = std::max(0.0, n.dot(a - x) / along);
@@ -43,64 +44,355 @@ void walk_line(const TetMesh& tets, std::int32_t t, Vec3 x, const Vec3& d, Visit
     const std::int32_t u = tets.neighbors[t][exit];
     if (u < 0) return;
     x += best * d;
-    visit(u);
+    if (!visit(u)) return;
     t = u;
   }
 }
 
-void add_unique(std::vector<std::int32_t>& list, std::int32_t value) {
-  if (std::find(list.begin(), list.end(), value) == list.end()) list.push_back(value);
+// The repair's working state: which part owns each tet, and each part's fixed attributes.
+// Parts are the face-connected components of the labeling at the start; a part keeps its id
+// while it gains and loses tets, even if it falls apart.
+struct Parts {
+  const TetMesh& tets;
+  const std::vector<std::int32_t>& region;
+  const std::vector<std::vector<Vec3>>& directions;
+  const TetAllowsLabel& allows;
+  std::vector<Vec3> centre;
+  std::vector<double> volume;
+  std::vector<std::int32_t> owner;
+  std::vector<std::int32_t> label_of, region_of;
+  std::vector<char> frozen;  // settled parts: their tets never move again
+
+  std::int32_t size() const { return static_cast<std::int32_t>(label_of.size()); }
+  const Vec3& direction(std::int32_t p) const { return directions[region_of[p]][label_of[p]]; }
+  bool may_join(std::int32_t t, std::int32_t p) const {
+    return region[t] == region_of[p] && allows(t, region_of[p], label_of[p]);
+  }
+
+  // Whether walking from tet t along d meets a tet `in` accepts after a run of tets `in`
+  // rejects that contains one `passable` rejects.
+  template <class In, class Passable>
+  bool blocked_gap(std::int32_t t, const Vec3& d, In&& in, Passable&& passable) const {
+    bool blocked = false, found = false;
+    walk_line(tets, t, centre[t], d, [&](std::int32_t u) {
+      if (in(u)) {
+        found = blocked;
+        return !found;
+      }
+      blocked = blocked || !passable(u);
+      return true;
+    });
+    return found;
+  }
+
+  // Whether walking from tet t along d meets a tet `in` accepts before any tet `passable`
+  // rejects.
+  template <class In, class Passable>
+  bool reaches(std::int32_t t, const Vec3& d, In&& in, Passable&& passable) const {
+    bool found = false;
+    walk_line(tets, t, centre[t], d, [&](std::int32_t u) {
+      if (in(u)) {
+        found = true;
+        return false;
+      }
+      return static_cast<bool>(passable(u));
+    });
+    return found;
+  }
+
+  // Tets not in part p that lie between two of its tets along its direction, among those whose
+  // line along it passes near `piece`'s tets (the only ones that moving the piece can change).
+  std::int32_t count_sandwiched_by(std::int32_t p, const std::vector<std::int32_t>& piece) const {
+    const std::int32_t n = static_cast<std::int32_t>(owner.size());
+    const Vec3 d = direction(p);
+    const Vec3 u = d.unitOrthogonal(), v = d.cross(u);
+    // The piece's footprint across d, grown by its largest tet's size.
+    double u_lo = INFINITY, u_hi = -INFINITY, v_lo = INFINITY, v_hi = -INFINITY, grow = 0.0;
+    for (std::int32_t t : piece) {
+      for (std::int32_t i : tets.tets[t]) {
+        const Vec3& x = tets.vertices[i];
+        u_lo = std::min(u_lo, x.dot(u)), u_hi = std::max(u_hi, x.dot(u));
+        v_lo = std::min(v_lo, x.dot(v)), v_hi = std::max(v_hi, x.dot(v));
+        grow = std::max(grow, (x - centre[t]).norm());
+      }
+    }
+    const auto in = [&](std::int32_t w) { return owner[w] == p; };
+    const auto any = [](std::int32_t) { return true; };
+    std::vector<char> out(n, 0);
+    tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
+      if (owner[t] == p || region[t] != region_of[p]) return;
+      const double a = centre[t].dot(u), b = centre[t].dot(v);
+      if (a < u_lo - grow || a > u_hi + grow || b < v_lo - grow || b > v_hi + grow) return;
+      out[t] = reaches(t, d, in, any) && reaches(t, -d, in, any);
+    });
+    return static_cast<std::int32_t>(std::count(out.begin(), out.end(), char{1}));
+  }
+};
+
+// Face-connected components of the tets with mark[t]; returns their tets.
+std::vector<std::vector<std::int32_t>> marked_components(const TetMesh& tets,
+                                                         const std::vector<char>& mark) {
+  const std::int32_t n = static_cast<std::int32_t>(mark.size());
+  std::vector<char> seen(n, 0);
+  std::vector<std::vector<std::int32_t>> out;
+  for (std::int32_t s = 0; s < n; ++s) {
+    if (!mark[s] || seen[s]) continue;
+    std::vector<std::int32_t> c{s};
+    seen[s] = 1;
+    for (std::size_t i = 0; i < c.size(); ++i)
+      for (std::int32_t u : tets.neighbors[c[i]])
+        if (u >= 0 && mark[u] && !seen[u]) {
+          seen[u] = 1;
+          c.push_back(u);
+        }
+    std::sort(c.begin(), c.end());
+    out.push_back(std::move(c));
+  }
+  return out;
 }
 
-// Moves pieces of parts, smallest first, each whole into the neighbouring part it shares the
-// most face area with among those whose label `allows` on all of it, until there are at most
-// max_parts parts or no piece can move.
-void merge_pieces(const TetMesh& tets, std::vector<std::int32_t>& label,
-                  const std::vector<std::int32_t>& region, const std::vector<double>& volume,
-                  const TetAllowsLabel& allows, std::int32_t max_parts, SandwichRepair& repair) {
-  const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
-  for (;;) {
-    std::int32_t num_parts = 0;
-    const std::vector<std::int32_t> part = detail::label_components(tets, label, region, num_parts);
-    if (num_parts <= max_parts) return;
-    std::vector<double> part_volume(num_parts, 0.0);
-    std::vector<std::vector<std::int32_t>> members(num_parts);
-    for (std::int32_t t = 0; t < n; ++t) {
-      part_volume[part[t]] += volume[t];
-      members[part[t]].push_back(t);
+// Gives the tets of `piece` (all owned by one part) to a neighbouring part that allows all of
+// them: the unsettled one sharing the most face area with it, else the settled one sharing the
+// most area that gains no sandwich along its direction. When `force`, and no such neighbour
+// exists, to the neighbour whose direction allows the most of its volume (then the most shared
+// area). Returns whether it moved.
+bool give_away(Parts& s, const std::vector<std::int32_t>& piece, bool force) {
+  const std::int32_t from = s.owner[piece.front()];
+  std::map<std::int32_t, double> shared;
+  for (std::int32_t t : piece)
+    for (int i = 0; i < 4; ++i) {
+      const std::int32_t u = s.tets.neighbors[t][i];
+      if (u >= 0 && s.owner[u] != from) shared[s.owner[u]] += tet_face_area(s.tets, t, i);
     }
-    std::vector<std::int32_t> order(num_parts);
-    for (std::int32_t p = 0; p < num_parts; ++p) order[p] = p;
-    std::stable_sort(order.begin(), order.end(), [&](std::int32_t a, std::int32_t b) {
-      return part_volume[a] < part_volume[b];
+  double piece_volume = 0.0;
+  for (std::int32_t t : piece) piece_volume += s.volume[t];
+  std::vector<std::tuple<int, double, std::int32_t>> fitting;  // (settled, -area, part)
+  std::vector<std::tuple<double, double, std::int32_t>> any;   // (-allowed volume, -area, part)
+  for (const auto& [q, area] : shared) {
+    double allowed = 0.0;
+    for (std::int32_t t : piece)
+      if (s.may_join(t, q)) allowed += s.volume[t];
+    if (allowed == piece_volume) fitting.emplace_back(s.frozen[q], -area, q);
+    if (s.region_of[q] == s.region_of[from]) any.emplace_back(-allowed, -area, q);
+  }
+  std::sort(fitting.begin(), fitting.end());
+  for (const auto& [settled, negative_area, q] : fitting) {
+    const std::int32_t before = settled ? s.count_sandwiched_by(q, piece) : 0;
+    for (std::int32_t t : piece) s.owner[t] = q;
+    if (!settled || s.count_sandwiched_by(q, piece) <= before) return true;
+    for (std::int32_t t : piece) s.owner[t] = from;
+  }
+  if (!force || any.empty()) return false;
+  const std::int32_t q = std::get<2>(*std::min_element(any.begin(), any.end()));
+  for (std::int32_t t : piece) s.owner[t] = q;
+  return true;
+}
+
+// Makes part p free of sandwiches along its direction d, then settles it. Each round either
+// fills: tets of unsettled parts that p may take and that reach p along d and -d through such
+// tets only (and touch p through them) join p; or, when nothing is left to fill, cuts: p's tets
+// beyond a gap it may not fill (a settled part, another region, a tet its direction does not
+// allow) leave p, on the side of the gap with less volume, each face-connected piece to a
+// neighbour (give_away()).
+std::int32_t settle(Parts& s, std::int32_t p, std::int32_t max_rounds) {
+  const std::int32_t n = static_cast<std::int32_t>(s.owner.size());
+  const Vec3 d = s.direction(p);
+  const auto in = [&](std::int32_t u) { return s.owner[u] == p; };
+  const auto any = [](std::int32_t) { return true; };
+  // Tets p gave away never come back, so a give and a fill cannot undo each other. Tets of a
+  // settled part may come only from the ends of its columns (it gains no sandwich), and stay
+  // where they are once taking them gave their part one anyway.
+  std::vector<char> banned(n, 0), end_of_column(n, 0);
+  const auto fillable = [&](std::int32_t u) {
+    return !banned[u] && (!s.frozen[s.owner[u]] || end_of_column[u]) && s.may_join(u, p);
+  };
+  // A gap of tets p gave away is not one it could not fill: p gave them up where it had to.
+  const auto passable = [&](std::int32_t u) { return banned[u] || fillable(u); };
+  std::vector<char> fill(n, 0), above(n, 0), below(n, 0);
+  for (std::int32_t round = 0; round < max_rounds; ++round) {
+    tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
+      end_of_column[t] = 0;
+      const std::int32_t q = s.owner[t];
+      if (q == p || !s.frozen[q] || banned[t] || !s.may_join(t, p)) return;
+      const auto in_q = [&](std::int32_t u) { return s.owner[u] == q; };
+      end_of_column[t] =
+          !(s.reaches(t, s.direction(q), in_q, any) && s.reaches(t, -s.direction(q), in_q, any));
     });
-    bool merged = false;
-    for (std::int32_t p : order) {
-      std::map<std::int32_t, double> shared;
-      for (std::int32_t t : members[p])
-        for (int i = 0; i < 4; ++i) {
-          const std::int32_t u = tets.neighbors[t][i];
-          if (u >= 0 && part[u] != p && region[u] == region[t])
-            shared[part[u]] += tet_face_area(tets, t, i);
+    tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
+      fill[t] = above[t] = below[t] = 0;
+      if (s.region[t] != s.region_of[p]) return;
+      if (in(t)) {
+        above[t] = s.blocked_gap(t, d, in, passable);
+        below[t] = s.blocked_gap(t, -d, in, passable);
+      } else if (fillable(t)) {
+        fill[t] = s.reaches(t, d, in, fillable) && s.reaches(t, -d, in, fillable);
+      }
+    });
+    // A tet joins only through tets that join too, so p stays one piece.
+    std::vector<char> joined(n, 0);
+    std::vector<std::int32_t> queue;
+    for (std::int32_t t = 0; t < n; ++t)
+      if (fill[t])
+        for (std::int32_t u : s.tets.neighbors[t])
+          if (u >= 0 && in(u)) {
+            joined[t] = 1;
+            queue.push_back(t);
+            break;
+          }
+    while (!queue.empty()) {
+      const std::int32_t t = queue.back();
+      queue.pop_back();
+      for (std::int32_t u : s.tets.neighbors[t])
+        if (u >= 0 && fill[u] && !joined[u]) {
+          joined[u] = 1;
+          queue.push_back(u);
         }
-      std::vector<std::pair<double, std::int32_t>> candidates;
-      for (const auto& [q, area] : shared) candidates.emplace_back(-area, q);
-      std::sort(candidates.begin(), candidates.end());
-      for (const auto& [negative_area, q] : candidates) {
-        const std::int32_t l = label[members[q].front()];
-        const bool fits = std::all_of(members[p].begin(), members[p].end(), [&](std::int32_t t) {
-          return allows(t, region[t], l);
-        });
-        if (!fits) continue;
-        for (std::int32_t t : members[p]) label[t] = l;
+    }
+    // Settled parts that lose tets: undone where they gain sandwiches all the same (several of
+    // their column ends going at once can open a gap).
+    std::map<std::int32_t, std::vector<std::int32_t>> taken;
+    for (std::int32_t t = 0; t < n; ++t)
+      if (joined[t] && s.frozen[s.owner[t]]) taken[s.owner[t]].push_back(t);
+    for (auto& [q, ts] : taken) {
+      const std::int32_t before = s.count_sandwiched_by(q, ts);
+      for (std::int32_t t : ts) s.owner[t] = p;
+      const bool worse = s.count_sandwiched_by(q, ts) > before;
+      for (std::int32_t t : ts) {
+        if (worse) s.owner[t] = q, banned[t] = 1, joined[t] = 0;
+      }
+    }
+    bool moved = false;
+    for (std::int32_t t = 0; t < n; ++t)
+      if (joined[t]) s.owner[t] = p, moved = true;
+    if (moved || !taken.empty()) continue;
+
+    double above_volume = 0.0, below_volume = 0.0;
+    for (std::int32_t t = 0; t < n; ++t) {
+      if (above[t]) above_volume += s.volume[t];
+      if (below[t]) below_volume += s.volume[t];
+    }
+    if (above_volume == 0.0 && below_volume == 0.0) return round;
+    // Tets with a gap below them are those above it: cutting them keeps p's lower side.
+    const bool cut_upper =
+        below_volume > 0.0 && (above_volume == 0.0 || below_volume <= above_volume);
+    for (const std::vector<char>* side :
+         {cut_upper ? &below : &above, cut_upper ? &above : &below}) {
+      for (const std::vector<std::int32_t>& piece : marked_components(s.tets, *side))
+        if (give_away(s, piece, false)) {
+          for (std::int32_t t : piece) banned[t] = 1;
+          moved = true;
+        }
+      if (moved) break;
+    }
+    if (!moved) return round;
+  }
+  return max_rounds;
+}
+
+// How far a labeling is from double height fields: the tets that lie between two tets of a part
+// of another label along that part's direction, and the largest volume of such tets within one
+// part, as a share of that part's volume. (The share of a part's lines that leave it and come
+// back, estimated from the lines through its tets, chose worse labelings on the test models.)
+struct Sandwiches {
+  std::int32_t tets = 0;
+  double worst_share = 0.0;
+  std::int32_t parts = 0;
+};
+Sandwiches count_sandwiched(const TetMesh& tets, const std::vector<std::int32_t>& label,
+                            const std::vector<std::int32_t>& region,
+                            const std::vector<std::vector<Vec3>>& directions,
+                            const std::vector<Vec3>& centre, const std::vector<double>& volume) {
+  const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
+  Sandwiches out;
+  const std::vector<std::int32_t> part = detail::label_components(tets, label, region, out.parts);
+  std::vector<std::pair<std::int32_t, std::int32_t>> used;
+  for (std::int32_t t = 0; t < n; ++t) used.emplace_back(region[t], label[t]);
+  std::sort(used.begin(), used.end());
+  used.erase(std::unique(used.begin(), used.end()), used.end());
+  std::vector<std::int32_t> sandwiching(n, -1);  // a part tet t lies within
+  tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
+    std::vector<std::int32_t> ahead;
+    for (const auto& [r, l] : used) {
+      if (sandwiching[t] >= 0) return;
+      if (r != region[t] || l == label[t]) continue;
+      const Vec3& d = directions[r][l];
+      ahead.clear();
+      walk_line(tets, t, centre[t], d, [&](std::int32_t u) {
+        if (region[u] == r && label[u] == l &&
+            std::find(ahead.begin(), ahead.end(), part[u]) == ahead.end())
+          ahead.push_back(part[u]);
+        return true;
+      });
+      if (ahead.empty()) continue;
+      walk_line(tets, t, centre[t], -d, [&](std::int32_t u) {
+        if (region[u] == r && label[u] == l &&
+            std::find(ahead.begin(), ahead.end(), part[u]) != ahead.end())
+          sandwiching[t] = part[u];
+        return sandwiching[t] < 0;
+      });
+    }
+  });
+  std::vector<double> part_volume(out.parts, 0.0), within(out.parts, 0.0);
+  for (std::int32_t t = 0; t < n; ++t) {
+    part_volume[part[t]] += volume[t];
+    if (sandwiching[t] >= 0) within[sandwiching[t]] += volume[t], ++out.tets;
+  }
+  for (std::int32_t p = 0; p < out.parts; ++p)
+    out.worst_share = std::max(out.worst_share, within[p] / part_volume[p]);
+  return out;
+}
+
+// Settles the parts in `order` (settle()), then hands out the pieces parts fell into: all but
+// a part's largest go to a neighbour that takes them without new sandwiches, or, when tiny, to
+// one in any case. Returns the labeling; counts the pieces in `repair`.
+std::vector<std::int32_t> settle_all(Parts s, const std::vector<std::int32_t>& order,
+                                     const SandwichOptions& opts, SandwichRepair& repair) {
+  const std::int32_t n = static_cast<std::int32_t>(s.owner.size());
+  repair.rounds = 0;
+  for (std::int32_t p : order) {
+    repair.rounds = std::max(repair.rounds, settle(s, p, opts.max_rounds));
+    s.frozen[p] = 1;
+  }
+  const std::vector<std::int32_t> settled_owner = s.owner;
+  const std::int32_t num_parts = s.size();
+  double total_volume = 0.0;
+  for (double v : s.volume) total_volume += v;
+  std::vector<std::int32_t> label(n);
+  for (;;) {
+    for (std::int32_t t = 0; t < n; ++t) label[t] = s.label_of[s.owner[t]];
+    std::int32_t now_parts = 0;
+    s.owner = detail::label_components(s.tets, label, s.region, now_parts);
+    s.label_of.assign(now_parts, -1);
+    s.region_of.assign(now_parts, -1);
+    s.frozen.assign(now_parts, 1);
+    std::vector<double> piece_volume(now_parts, 0.0);
+    std::vector<std::vector<std::int32_t>> members(now_parts);
+    for (std::int32_t t = 0; t < n; ++t) {
+      const std::int32_t c = s.owner[t];
+      if (s.label_of[c] < 0) s.label_of[c] = label[t], s.region_of[c] = s.region[t];
+      piece_volume[c] += s.volume[t];
+      members[c].push_back(t);
+    }
+    std::vector<std::int32_t> largest(num_parts, -1);  // per part before the pieces moved
+    for (std::int32_t c = 0; c < now_parts; ++c) {
+      std::int32_t& l = largest[settled_owner[members[c].front()]];
+      if (l < 0 || piece_volume[c] > piece_volume[l]) l = c;
+    }
+    std::vector<std::int32_t> pieces;
+    for (std::int32_t c = 0; c < now_parts; ++c)
+      if (largest[settled_owner[members[c].front()]] != c) pieces.push_back(c);
+    std::stable_sort(pieces.begin(), pieces.end(), [&](std::int32_t a, std::int32_t b) {
+      return piece_volume[a] < piece_volume[b];
+    });
+    bool moved = false;
+    for (std::int32_t c : pieces)
+      if (give_away(s, members[c], piece_volume[c] < opts.tiny_piece_share * total_volume)) {
         ++repair.merged_pieces;
-        repair.merged_tets += static_cast<std::int32_t>(members[p].size());
-        merged = true;
+        repair.merged_tets += static_cast<std::int32_t>(members[c].size());
+        moved = true;
         break;
       }
-      if (merged) break;
-    }
-    if (!merged) return;
+    if (!moved) return label;
   }
 }
 
@@ -110,9 +402,9 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
                                       const std::vector<std::int32_t>& region,
                                       const std::vector<std::vector<Vec3>>& directions,
                                       const TetAllowsLabel& allows, const SandwichOptions& opts) {
-  if (opts.max_rounds < 0 || opts.max_extra_parts < 0)
+  if (opts.max_rounds < 0 || !(opts.tiny_piece_share >= 0.0 && opts.tiny_piece_share <= 1.0))
     throw Error(ErrorCode::InvalidOptions,
-                "sandwich repair: max_rounds and max_extra_parts must be >= 0");
+                "sandwich repair: max_rounds must be >= 0 and tiny_piece_share in [0, 1]");
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
   if (tets.neighbors.size() != tets.tets.size() || label.size() != tets.tets.size() ||
       region.size() != tets.tets.size())
@@ -123,177 +415,60 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
       throw Error(ErrorCode::Internal,
                   "sandwich repair: tet " + std::to_string(t) + " has no direction");
 
-  std::vector<Vec3> centre(n);
-  std::vector<double> volume(n);
+  Parts s{tets, region, directions, allows, {}, {}, {}, {}, {}, {}};
+  s.centre.resize(n);
+  s.volume.resize(n);
   for (std::int32_t t = 0; t < n; ++t) {
     const Tet& k = tets.tets[t];
-    centre[t] = 0.25 * (tets.vertices[k[0]] + tets.vertices[k[1]] + tets.vertices[k[2]] +
-                        tets.vertices[k[3]]);
-    volume[t] = tet_volume(tets, t);
+    s.centre[t] = 0.25 * (tets.vertices[k[0]] + tets.vertices[k[1]] + tets.vertices[k[2]] +
+                          tets.vertices[k[3]]);
+    s.volume[t] = tet_volume(tets, t);
   }
-
-  SandwichRepair repair;
-  std::vector<char> moved(n, 0);
-  std::vector<std::int32_t> target(n, -1);  // label a tet moves to this round, -1: stays
-  // Moves can put other tets into other parts' infeasible volumes and split parts, so the
-  // labeling kept is the one of the round with the fewest sandwiched tets among those with at
-  // most max_extra_parts more parts than at the start (the start itself qualifies).
   const std::vector<std::int32_t> initial = label;
-  std::vector<std::int32_t> best = label;
-  std::int32_t initial_parts = -1, best_sandwiched = -1;
-  SandwichRepair pieces;  // pieces merged so far
-  int over_budget = 0;    // consecutive rounds with too many parts
-  for (std::int32_t round = 0;; ++round) {
-    // --- 1. the parts as they are now: component, its (region, label), volume, first tet ---
+  SandwichRepair repair;
+  Sandwiches best = count_sandwiched(tets, label, region, directions, s.centre, s.volume);
+  if (opts.max_rounds > 0) {
     std::int32_t num_parts = 0;
-    const std::vector<std::int32_t> part = detail::label_components(tets, label, region, num_parts);
+    s.owner = detail::label_components(tets, label, region, num_parts);
+    s.label_of.assign(num_parts, -1);
+    s.region_of.assign(num_parts, -1);
+    s.frozen.assign(num_parts, 0);
     std::vector<double> part_volume(num_parts, 0.0);
-    std::vector<std::int32_t> part_first(num_parts, -1);
     for (std::int32_t t = 0; t < n; ++t) {
-      part_volume[part[t]] += volume[t];
-      if (part_first[part[t]] < 0) part_first[part[t]] = t;
+      const std::int32_t p = s.owner[t];
+      if (s.label_of[p] < 0) s.label_of[p] = label[t], s.region_of[p] = region[t];
+      part_volume[p] += s.volume[t];
     }
-    // Walks are made once per distinct (region, label) in use: one line serves every part of it.
-    std::vector<std::pair<std::int32_t, std::int32_t>> used;
-    for (std::int32_t p = 0; p < num_parts; ++p) {
-      const std::int32_t t = part_first[p];
-      used.emplace_back(region[t], label[t]);
-    }
-    std::sort(used.begin(), used.end());
-    used.erase(std::unique(used.begin(), used.end()), used.end());
-
-    // --- 2. every tet: is it sandwiched by a part of another label, and may it join it? ---
-    std::vector<char> stuck(n, 0);
-    std::vector<std::int32_t> target_part(n, -1);
-    tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
-      target[t] = -1;
-      std::int32_t best = -1;
-      std::vector<std::int32_t> ahead, behind;
-      for (const auto& [r, l] : used) {
-        if (r != region[t] || l == label[t]) continue;
-        const Vec3& d = directions[r][l];
-        ahead.clear();
-        behind.clear();
-        auto keep = [&](std::vector<std::int32_t>& list) {
-          return [&](std::int32_t u) {
-            if (region[u] == r && label[u] == l) add_unique(list, part[u]);
-          };
-        };
-        walk_line(tets, t, centre[t], d, keep(ahead));
-        if (ahead.empty()) continue;
-        walk_line(tets, t, centre[t], -d, keep(behind));
-        for (std::int32_t p : ahead) {
-          if (std::find(behind.begin(), behind.end(), p) == behind.end()) continue;
-          if (moved[t] || !allows(t, r, l)) {
-            stuck[t] = 1;
-            continue;
-          }
-          if (best < 0 || part_volume[p] > part_volume[best] ||
-              (part_volume[p] == part_volume[best] && part_first[p] < part_first[best]))
-            best = p;
-        }
-      }
-      if (best >= 0) {
-        target[t] = label[part_first[best]];
-        target_part[t] = best;
-        stuck[t] = 0;
-      }
+    // The parts that settle first keep their shape and later ones give way, so which order
+    // wins depends on the shape: largest first, and smallest first, are both tried, and the
+    // labeling whose worst part has the smallest share of sandwiched volume is kept (then the
+    // one with fewer parts; the segmentation's own labeling competes too). Components are
+    // numbered by their smallest tet, so ties in volume go to the part that comes first.
+    std::vector<std::int32_t> order(num_parts);
+    for (std::int32_t p = 0; p < num_parts; ++p) order[p] = p;
+    std::stable_sort(order.begin(), order.end(), [&](std::int32_t a, std::int32_t b) {
+      return part_volume[a] > part_volume[b];
     });
-
-    // A tet joins only through tets that join too: moved tets that would not touch the part
-    // would make new, separate parts of its label. Those wait for a later round.
-    std::vector<char> joined(n, 0);
-    std::vector<std::int32_t> queue;
-    for (std::int32_t t = 0; t < n; ++t) {
-      if (target_part[t] < 0) continue;
-      for (std::int32_t u : tets.neighbors[t])
-        if (u >= 0 && part[u] == target_part[t] && target_part[u] < 0) {
-          joined[t] = 1;
-          queue.push_back(t);
-          break;
-        }
-    }
-    while (!queue.empty()) {
-      const std::int32_t t = queue.back();
-      queue.pop_back();
-      for (std::int32_t u : tets.neighbors[t])
-        if (u >= 0 && !joined[u] && target_part[u] == target_part[t]) {
-          joined[u] = 1;
-          queue.push_back(u);
-        }
-    }
-    for (std::int32_t t = 0; t < n; ++t)
-      if (target_part[t] >= 0 && !joined[t]) {
-        target[t] = -1;
-        stuck[t] = 1;
+    for (int pass = 0; pass < 2; ++pass) {
+      SandwichRepair tried;
+      const std::vector<std::int32_t> result = settle_all(s, order, opts, tried);
+      const Sandwiches left =
+          count_sandwiched(tets, result, region, directions, s.centre, s.volume);
+      if (std::make_pair(left.worst_share, left.parts) <
+          std::make_pair(best.worst_share, best.parts)) {
+        best = left;
+        repair.order = pass == 0 ? "largest first" : "smallest first";
+        label = result;
+        repair.rounds = tried.rounds;
+        repair.merged_pieces = tried.merged_pieces;
+        repair.merged_tets = tried.merged_tets;
       }
-
-    // --- 3. move them all at once, so the outcome does not depend on the visiting order ---
-    const std::int32_t found = static_cast<std::int32_t>(
-        std::count_if(target.begin(), target.end(), [](std::int32_t l) { return l >= 0; }));
-    const std::int32_t sandwiched =
-        found + static_cast<std::int32_t>(std::count(stuck.begin(), stuck.end(), char{1}));
-    if (round == 0) initial_parts = num_parts;
-    const bool few_enough = num_parts <= initial_parts + opts.max_extra_parts;
-    if (few_enough && (best_sandwiched < 0 || sandwiched < best_sandwiched)) {
-      best_sandwiched = sandwiched;
-      best = label;
-      repair.rounds = round;
-      repair.converged = found == 0;
-      repair.stuck_tets = sandwiched;
-      repair.merged_pieces = pieces.merged_pieces;
-      repair.merged_tets = pieces.merged_tets;
+      std::reverse(order.begin(), order.end());
     }
-    // Pieces seldom join again once the parts outnumber the budget: two such rounds in a row
-    // end the search (the walks are the stage's cost).
-    over_budget = few_enough ? 0 : over_budget + 1;
-    if (found == 0 || round == opts.max_rounds || over_budget == 2) break;
-    const std::vector<std::int32_t> before = label;
-    for (std::int32_t t = 0; t < n; ++t)
-      if (target[t] >= 0) label[t] = target[t];
-
-    // --- 4. pieces the moves cut off ---
-    // A part that lost tets may fall apart; a piece that no neighbour can take whole would be
-    // a new part, so the moves out of that part are undone and its tets stay where they are.
-    merge_pieces(tets, label, region, volume, allows, num_parts, pieces);
-    std::int32_t now_parts = 0;
-    std::vector<std::int32_t> now = detail::label_components(tets, label, region, now_parts);
-    if (now_parts > num_parts) {
-      // Pieces: components made only of tets that stayed in one old part, other than that
-      // part's largest one.
-      std::vector<std::int32_t> source(now_parts, -2);  // old part, -1 when mixed
-      std::vector<double> now_volume(now_parts, 0.0);
-      for (std::int32_t t = 0; t < n; ++t) {
-        const std::int32_t c = now[t];
-        now_volume[c] += volume[t];
-        const std::int32_t from = before[t] == label[t] ? part[t] : -1;
-        source[c] = source[c] == -2 ? from : (source[c] == from ? from : -1);
-      }
-      std::vector<std::int32_t> largest(num_parts, -1);
-      for (std::int32_t c = 0; c < now_parts; ++c) {
-        const std::int32_t q = source[c];
-        if (q < 0) continue;
-        if (largest[q] < 0 || now_volume[c] > now_volume[largest[q]]) largest[q] = c;
-      }
-      std::vector<char> undo(num_parts, 0);
-      for (std::int32_t c = 0; c < now_parts; ++c)
-        if (source[c] >= 0 && largest[source[c]] != c) undo[source[c]] = 1;
-      for (std::int32_t t = 0; t < n; ++t)
-        if (before[t] != label[t] && undo[part[t]]) {
-          label[t] = before[t];
-          moved[t] = 1;  // would cut its part again: stays for good
-        }
-    }
-
-    // --- 5. a tet moves at most once, so two parts cannot trade it back and forth ---
-    bool changed = false;
-    for (std::int32_t t = 0; t < n; ++t)
-      if (before[t] != label[t]) moved[t] = 1, changed = true;
-    if (!changed) break;  // every move was undone
   }
-
-  // --- 6. what moved, from the start to the labeling kept ---
-  label = best;
+  repair.stuck_tets = best.tets;
+  repair.worst_share = best.worst_share;
+  repair.converged = best.tets == 0;
   std::map<std::tuple<std::int32_t, std::int32_t, std::int32_t>, SandwichMove> moves;
   for (std::int32_t t = 0; t < n; ++t) {
     if (initial[t] == label[t]) continue;
@@ -302,9 +477,10 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
     m.from_label = initial[t];
     m.to_label = label[t];
     ++m.tets;
-    m.volume_mm3 += volume[t];
+    m.volume_mm3 += s.volume[t];
     ++repair.moved_tets;
-    repair.moved_volume_mm3 += volume[t];
+    repair.moved_volume_mm3 += s.volume[t];
+    repair.forced_tets += !allows(t, region[t], label[t]);
   }
   for (const auto& [key, m] : moves) repair.moves.push_back(m);
   return repair;

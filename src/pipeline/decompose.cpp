@@ -111,8 +111,9 @@ void validate_options(const DecomposeOptions& o) {
   require(std::isfinite(o.segment.lambda) && o.segment.lambda >= 0, "--lambda must be >= 0");
   require(o.smoothing.iterations >= 0 && o.smoothing.iterations <= 10000,
           "--smoothing must be between 0 and 10000");
-  require(o.sandwich.max_rounds >= 0 && o.sandwich.max_extra_parts >= 0,
-          "sandwich max_rounds and max_extra_parts must be >= 0");
+  require(o.sandwich.max_rounds >= 0 && o.sandwich.tiny_piece_share >= 0 &&
+              o.sandwich.tiny_piece_share <= 1,
+          "sandwich max_rounds must be >= 0 and tiny_piece_share in [0, 1]");
   require(o.segment.restarts >= 1 && o.segment.restarts <= 1000,
           "--restarts must be between 1 and 1000");
   if (o.make_molds) validate_mold_options(o.molds);

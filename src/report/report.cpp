@@ -165,13 +165,16 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                      {"to_direction", m.to_label},
                      {"tets", m.tets},
                      {"volume_mm3", m.volume_mm3}});
-  j["sandwich_repair"] = {{"rounds", d.sandwich.rounds},
+  j["sandwich_repair"] = {{"order", d.sandwich.order},
+                          {"rounds", d.sandwich.rounds},
                           {"converged", d.sandwich.converged},
                           {"moved_tets", d.sandwich.moved_tets},
                           {"moved_volume_mm3", d.sandwich.moved_volume_mm3},
                           {"stuck_tets", d.sandwich.stuck_tets},
+                          {"worst_share", d.sandwich.worst_share},
                           {"merged_pieces", d.sandwich.merged_pieces},
                           {"merged_tets", d.sandwich.merged_tets},
+                          {"forced_tets", d.sandwich.forced_tets},
                           {"moves", moves}};
   j["manifold_repair"] = {{"moved_tets", d.manifold.moved_tets},
                           {"moved_volume_mm3", d.manifold.moved_volume_mm3},
