@@ -28,8 +28,8 @@ namespace PMP = CGAL::Polygon_mesh_processing;
 using EK = CGAL::Exact_predicates_exact_constructions_kernel;
 using ExactMesh = CGAL::Surface_mesh<EK::Point_3>;
 using Face = ExactMesh::Face_index;
-// Where a face of a cut part comes from: kFromSolid for the input surface, else the
-// triangle_neighbor of the region's face it is a piece of (-1 for a pushed-out outer face).
+// Where a face of a cut part comes from: kFromSolid for the input surface, else the part
+// across the region's face it is a piece of (below kFromSolid for a moved-out outer face).
 constexpr std::int32_t kFromSolid = -2;
 
 // Vertex positions as map keys: shared vertices of neighbouring parts have equal coordinates.
@@ -336,6 +336,15 @@ Region moved_region(const Part& part, const PointMap& dirs, const LengthMap& pus
   return kept;
 }
 
+// The origin of each region face for the cut: the part across it, or kFromSolid - 1 - t for an
+// outer face t.
+std::vector<std::int32_t> origins(const Region& r) {
+  std::vector<std::int32_t> origin = r.neighbor;
+  for (std::size_t t = 0; t < origin.size(); ++t)
+    if (origin[t] < 0) origin[t] = kFromSolid - 1 - static_cast<std::int32_t>(t);
+  return origin;
+}
+
 // solid ∩ region, with the origins of the result's faces; nullopt when CGAL rejects an operand
 // (a region that intersects or touches itself).
 std::optional<std::pair<TriMesh, std::vector<std::int32_t>>> intersect(
@@ -425,43 +434,64 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   std::vector<Region> regions(n);
   constexpr int kHalvings = 12;
   std::vector<char> folds(n, 0);
-  for (int round = 0;; ++round) {
-    std::vector<std::set<Vec3, VecLess>> folded(n);
+  std::set<Vec3, VecLess> halved;  // vertices that ever moved less for a fold
+  std::vector<std::optional<std::pair<TriMesh, std::vector<std::int32_t>>>> results(n);
+  // Where a moved outer side still lies inside the solid, its corners that never folded move
+  // twice as far, and all is done again.
+  constexpr int kGrowths = 3;
+  for (int pass = 0;; ++pass) {
+    for (int round = 0;; ++round) {
+      std::vector<std::set<Vec3, VecLess>> folded(n);
+      tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
+        regions[i] = moved_region(parts[i], dirs, push, inset, owner);
+        separate_pinches(regions[i].mesh, hair);
+        if (!own[i].empty()) return;  // CGAL rejects it anyway
+        for (const auto& pair : intersecting_triangles(regions[i].mesh, ~0u))
+          for (std::int32_t t : pair)
+            for (std::int32_t v : regions[i].mesh.triangles[t])
+              folded[i].insert(regions[i].source[v]);
+      });
+      for (std::size_t i = 0; i < n; ++i) folds[i] = !folded[i].empty();
+      if (std::find(folds.begin(), folds.end(), 1) == folds.end() || round == kHalvings) break;
+      std::set<Vec3, VecLess> all;
+      for (const auto& vs : folded) all.insert(vs.begin(), vs.end());
+      for (const Vec3& v : all)
+        if (const auto seam = seams.find(v); seam != seams.end() && !tried.contains(v)) {
+          inset.insert(*seam);
+          tried.insert(v);
+        } else if (inset.erase(v) == 0) {
+          if (const auto it = push.find(v); it != push.end()) {
+            it->second *= 0.5;
+            halved.insert(v);
+          }
+        }
+    }
     tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
-      regions[i] = moved_region(parts[i], dirs, push, inset, owner);
-      separate_pinches(regions[i].mesh, hair);
-      if (!own[i].empty()) return;  // CGAL rejects it anyway
-      for (const auto& pair : intersecting_triangles(regions[i].mesh, ~0u))
-        for (std::int32_t t : pair)
-          for (std::int32_t v : regions[i].mesh.triangles[t])
-            folded[i].insert(regions[i].source[v]);
+      results[i].reset();
+      cut.problem[i].clear();
+      if (!own[i].empty())
+        cut.problem[i] = "the part intersects itself (triangles " + std::to_string(own[i][0][0]) +
+                         " and " + std::to_string(own[i][0][1]) + ")";
+      else if (folds[i])
+        cut.problem[i] = "its outer surface folds where it is moved out past the input surface";
+      else
+        results[i] = intersect(solid, regions[i].mesh, origins(regions[i]), cut.problem[i]);
     });
-    for (std::size_t i = 0; i < n; ++i) folds[i] = !folded[i].empty();
-    if (std::find(folds.begin(), folds.end(), 1) == folds.end() || round == kHalvings) break;
-    std::set<Vec3, VecLess> all;
-    for (const auto& vs : folded) all.insert(vs.begin(), vs.end());
-    for (const Vec3& v : all)
-      if (const auto seam = seams.find(v); seam != seams.end() && !tried.contains(v)) {
-        inset.insert(*seam);
-        tried.insert(v);
-      } else if (inset.erase(v) == 0) {
-        if (const auto it = push.find(v); it != push.end()) it->second *= 0.5;
-      }
+    std::set<Vec3, VecLess> grow;
+    for (std::size_t i = 0; i < n; ++i)
+      if (results[i])
+        for (std::int32_t o : results[i]->second)
+          if (o < kFromSolid)
+            for (std::int32_t v : regions[i].mesh.triangles[kFromSolid - 1 - o])
+              if (const Vec3& p = regions[i].source[v]; push.contains(p) && !halved.contains(p))
+                grow.insert(p);
+    if (grow.empty() || pass == kGrowths) break;
+    for (const Vec3& p : grow) push.at(p) *= 2.0;
   }
   double largest = 0.0;
   for (const auto& [p, d] : push) largest = std::max(largest, d);
   cut.push_mm = largest;
 
-  std::vector<std::optional<std::pair<TriMesh, std::vector<std::int32_t>>>> results(n);
-  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
-    if (!own[i].empty())
-      cut.problem[i] = "the part intersects itself (triangles " + std::to_string(own[i][0][0]) +
-                       " and " + std::to_string(own[i][0][1]) + ")";
-    else if (folds[i])
-      cut.problem[i] = "its outer surface folds where it is moved out past the input surface";
-    else
-      results[i] = intersect(solid, regions[i].mesh, regions[i].neighbor, cut.problem[i]);
-  });
   // A sliver part can lie wholly between the tet mesh's boundary and the input surface: cut, it
   // is empty. Its tets go to the neighbour it shares the most interface with.
   std::vector<std::int32_t> heir(n, -1);
@@ -515,7 +545,7 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
       part.triangle_neighbor.assign(origin.size(), -1);
       for (std::size_t t = 0; t < origin.size(); ++t) {
         if (origin[t] >= 0) part.triangle_neighbor[t] = origin[t];
-        if (origin[t] == -1) ++kept_cut.uncovered_triangles;
+        if (origin[t] < kFromSolid) ++kept_cut.uncovered_triangles;
       }
       part.volume_mm3 = signed_volume(part.mesh);
     }
