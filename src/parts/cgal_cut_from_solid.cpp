@@ -28,8 +28,8 @@ namespace PMP = CGAL::Polygon_mesh_processing;
 using EK = CGAL::Exact_predicates_exact_constructions_kernel;
 using ExactMesh = CGAL::Surface_mesh<EK::Point_3>;
 using Face = ExactMesh::Face_index;
-// Where a face of a cut part comes from: kFromSolid for the input surface, else the
-// triangle_neighbor of the region's face it is a piece of (-1 for a pushed-out outer face).
+// Where a face of a cut part comes from: kFromSolid for the input surface, else the part
+// across the region's face it is a piece of (below kFromSolid for a moved-out outer face).
 constexpr std::int32_t kFromSolid = -2;
 
 // Vertex positions as map keys: shared vertices of neighbouring parts have equal coordinates.
@@ -74,8 +74,8 @@ std::vector<std::array<Vec3, 3>> outer_triangles(const std::vector<Part>& parts)
     for (std::size_t t = 0; t < part.mesh.triangles.size(); ++t)
       if (part.triangle_neighbor[t] < 0) {
         const Tri& tri = part.mesh.triangles[t];
-        out.push_back({part.mesh.vertices[tri[0]], part.mesh.vertices[tri[1]],
-                       part.mesh.vertices[tri[2]]});
+        out.push_back(
+            {part.mesh.vertices[tri[0]], part.mesh.vertices[tri[1]], part.mesh.vertices[tri[2]]});
       }
   return out;
 }
@@ -90,11 +90,20 @@ LengthMap local_reach(const TriMesh& solid, const std::vector<std::array<Vec3, 3
   if (triangles.empty()) return reach;
   Tree tree(triangles.begin(), triangles.end());
   tree.accelerate_distance_queries();
-  std::vector<Vec3> samples = solid.vertices;
-  for (const Tri& t : solid.triangles)
-    for (int i = 0; i < 3; ++i)
-      if (t[i] < t[(i + 1) % 3])  // each edge once
-        samples.push_back(0.5 * (solid.vertices[t[i]] + solid.vertices[t[(i + 1) % 3]]));
+  // Samples a quarter of an outer edge apart (at most 64 a side, at least its corners and
+  // edge midpoints), so that large input triangles over small tets are not missed.
+  double edges = 0.0;
+  for (const auto& t : outer)
+    edges += (t[1] - t[0]).norm() + (t[2] - t[1]).norm() + (t[0] - t[2]).norm();
+  const double spacing = 0.25 * edges / (3.0 * static_cast<double>(outer.size()));
+  std::vector<Vec3> samples;
+  for (const Tri& t : solid.triangles) {
+    const Vec3 &a = solid.vertices[t[0]], &b = solid.vertices[t[1]], &c = solid.vertices[t[2]];
+    const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+    const int k = std::clamp(static_cast<int>(std::ceil(longest / spacing)), 2, 64);
+    for (int i = 0; i <= k; ++i)
+      for (int j = 0; i + j <= k; ++j) samples.push_back((i * a + j * b + (k - i - j) * c) / k);
+  }
   std::vector<std::pair<double, std::size_t>> nearest(samples.size());
   tbb::parallel_for(std::size_t{0}, samples.size(), [&](std::size_t i) {
     const auto [p, id] = tree.closest_point_and_primitive(point(samples[i]));
@@ -171,11 +180,169 @@ void separate_pinches(TriMesh& m, double hair) {
   std::vector<Vec3> toward(m.vertices.size(), Vec3::Zero());  // to its fan's other corners
   for (const Tri& t : m.triangles)
     for (int k = 0; k < 3; ++k)
-      toward[t[k]] += m.vertices[t[(k + 1) % 3]] + m.vertices[t[(k + 2) % 3]] - 2 * m.vertices[t[k]];
+      toward[t[k]] +=
+          m.vertices[t[(k + 1) % 3]] + m.vertices[t[(k + 2) % 3]] - 2 * m.vertices[t[k]];
   for (const auto& [p, copies] : at)
     if (copies.size() > 1)
       for (std::int32_t v : copies)
         if (toward[v].norm() > 0.0) m.vertices[v] = p + hair * toward[v].normalized();
+}
+
+// Seam vertices (outer vertices that interfaces reach too) and how far each moves into the
+// solid: a thousandth of its outer edges' mean length, so that the input surface, which passes
+// through the vertex, crosses the walls there cleanly instead of grazing a corner. Left out
+// where a part's triangles around the vertex change between outer and interface more than
+// twice: one wall edge could not join them.
+LengthMap seam_insets(const std::vector<Part>& parts,
+                      const std::vector<std::array<Vec3, 3>>& outer) {
+  std::map<Vec3, std::pair<double, int>, VecLess> edges;  // outer edge lengths at each vertex
+  for (const auto& t : outer)
+    for (int k = 0; k < 3; ++k) {
+      const double l = (t[(k + 1) % 3] - t[k]).norm();
+      for (const Vec3& p : {t[k], t[(k + 1) % 3]}) {
+        edges[p].first += l;
+        ++edges[p].second;
+      }
+    }
+  LengthMap inset;
+  std::set<Vec3, VecLess> excluded;
+  for (const Part& part : parts) {
+    const TriMesh& m = part.mesh;
+    std::map<std::pair<std::int32_t, std::int32_t>, bool>
+        is_outer;  // directed edge -> its triangle
+    for (std::size_t t = 0; t < m.triangles.size(); ++t)
+      for (int k = 0; k < 3; ++k)
+        is_outer[{m.triangles[t][k], m.triangles[t][(k + 1) % 3]}] = part.triangle_neighbor[t] < 0;
+    std::vector<int> seam_edges(m.vertices.size(), 0);
+    for (const auto& [e, outer_side] : is_outer)
+      if (outer_side && !is_outer.at({e.second, e.first})) {
+        ++seam_edges[e.first];
+        ++seam_edges[e.second];
+      }
+    for (std::size_t t = 0; t < m.triangles.size(); ++t)
+      if (part.triangle_neighbor[t] >= 0)
+        for (std::int32_t v : m.triangles[t])
+          if (const auto it = edges.find(m.vertices[v]); it != edges.end())
+            inset[m.vertices[v]] = 1e-3 * it->second.first / it->second.second;
+    for (std::size_t v = 0; v < m.vertices.size(); ++v)
+      if (seam_edges[v] > 2) excluded.insert(m.vertices[v]);
+  }
+  for (const Vec3& p : excluded) inset.erase(p);
+  return inset;
+}
+
+// Directed outer edges (by their ends' positions) and the part whose outer triangle has them.
+using EdgeKey = std::array<double, 6>;
+EdgeKey edge_key(const Vec3& a, const Vec3& b) {
+  return {a.x(), a.y(), a.z(), b.x(), b.y(), b.z()};
+}
+using EdgeOwners = std::map<EdgeKey, std::int32_t>;
+EdgeOwners outer_edge_owners(const std::vector<Part>& parts) {
+  EdgeOwners owner;
+  for (std::size_t i = 0; i < parts.size(); ++i)
+    for (std::size_t t = 0; t < parts[i].mesh.triangles.size(); ++t)
+      if (parts[i].triangle_neighbor[t] < 0)
+        for (int k = 0; k < 3; ++k)
+          owner[edge_key(parts[i].mesh.vertices[parts[i].mesh.triangles[t][k]],
+                         parts[i].mesh.vertices[parts[i].mesh.triangles[t][(k + 1) % 3]])] =
+              static_cast<std::int32_t>(i);
+  return owner;
+}
+
+// A part's region, moved out, with the part on the other side of each face (-1: outer) and
+// the position each vertex came from.
+struct Region {
+  TriMesh mesh;
+  std::vector<std::int32_t> neighbor;
+  std::vector<Vec3> source;
+};
+
+// The part's region with its outer vertices moved out along `dirs` by `push`. A seam vertex
+// (in `inset`) splits: its outer triangles take the moved copy, its interface triangles a copy
+// moved `inset` into the solid, and a wall between the two copies along each seam edge extends
+// the interface outward. So interfaces barely move and a thin fin's outer side cannot fold
+// through them.
+Region moved_region(const Part& part, const PointMap& dirs, const LengthMap& push,
+                    const LengthMap& inset, const EdgeOwners& owner) {
+  const TriMesh& m = part.mesh;
+  Region r;
+  std::vector<std::int32_t> out(m.vertices.size());  // the copy outer triangles use
+  for (std::size_t v = 0; v < m.vertices.size(); ++v) {
+    const Vec3& p = m.vertices[v];
+    out[v] = static_cast<std::int32_t>(v);
+    r.source.push_back(p);
+    const auto d = dirs.find(p);
+    if (d == dirs.end()) {
+      r.mesh.vertices.push_back(p);
+      continue;
+    }
+    const Vec3 moved = p + push.at(p) * d->second;
+    const auto in = inset.find(p);
+    r.mesh.vertices.push_back(in == inset.end() ? moved : p - in->second * d->second);
+    if (in != inset.end()) out[v] = -1;
+  }
+  // The moved copies of split vertices follow the others, in vertex order.
+  for (std::size_t v = 0; v < m.vertices.size(); ++v)
+    if (out[v] < 0) {
+      out[v] = static_cast<std::int32_t>(r.mesh.vertices.size());
+      r.mesh.vertices.push_back(m.vertices[v] + push.at(m.vertices[v]) * dirs.at(m.vertices[v]));
+      r.source.push_back(m.vertices[v]);
+    }
+  std::set<std::pair<std::int32_t, std::int32_t>> across;  // directed edges of interfaces
+  for (std::size_t t = 0; t < m.triangles.size(); ++t)
+    if (part.triangle_neighbor[t] >= 0)
+      for (int k = 0; k < 3; ++k) across.insert({m.triangles[t][k], m.triangles[t][(k + 1) % 3]});
+  auto add = [&](std::int32_t a, std::int32_t b, std::int32_t c, std::int32_t neighbor) {
+    if (a == b || b == c || c == a) return;  // a wall beside a vertex that did not split
+    r.mesh.triangles.push_back({a, b, c});
+    r.neighbor.push_back(neighbor);
+  };
+  for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+    const Tri& tri = m.triangles[t];
+    if (part.triangle_neighbor[t] >= 0) {
+      add(tri[0], tri[1], tri[2], part.triangle_neighbor[t]);
+      continue;
+    }
+    add(out[tri[0]], out[tri[1]], out[tri[2]], -1);
+    for (int k = 0; k < 3; ++k) {
+      const std::int32_t a = tri[k], b = tri[(k + 1) % 3];
+      if (!across.contains({b, a})) continue;
+      // The part across the seam on the surface: not always the one across the interface.
+      const std::int32_t x = owner.at(edge_key(m.vertices[b], m.vertices[a]));
+      // The wall a, b, b', a': split along the same diagonal in both parts it bounds.
+      if (VecLess()(m.vertices[a], m.vertices[b])) {
+        add(a, b, out[b], x);
+        add(a, out[b], out[a], x);
+      } else {
+        add(a, b, out[a], x);
+        add(b, out[b], out[a], x);
+      }
+    }
+  }
+  // A split vertex that only outer triangles use here keeps no copy inside.
+  std::vector<std::int32_t> index(r.mesh.vertices.size(), -1);
+  for (const Tri& t : r.mesh.triangles)
+    for (std::int32_t v : t) index[v] = 0;
+  Region kept;
+  for (std::size_t v = 0; v < index.size(); ++v)
+    if (index[v] == 0) {
+      index[v] = static_cast<std::int32_t>(kept.mesh.vertices.size());
+      kept.mesh.vertices.push_back(r.mesh.vertices[v]);
+      kept.source.push_back(r.source[v]);
+    }
+  for (const Tri& t : r.mesh.triangles)
+    kept.mesh.triangles.push_back({index[t[0]], index[t[1]], index[t[2]]});
+  kept.neighbor = std::move(r.neighbor);
+  return kept;
+}
+
+// The origin of each region face for the cut: the part across it, or kFromSolid - 1 - t for an
+// outer face t.
+std::vector<std::int32_t> origins(const Region& r) {
+  std::vector<std::int32_t> origin = r.neighbor;
+  for (std::size_t t = 0; t < origin.size(); ++t)
+    if (origin[t] < 0) origin[t] = kFromSolid - 1 - static_cast<std::int32_t>(t);
+  return origin;
 }
 
 // solid ∩ region, with the origins of the result's faces; nullopt when CGAL rejects an operand
@@ -247,60 +414,84 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   LengthMap push = local_reach(solid, outer);
   for (auto& [p, d] : push) d = 2.0 * d + margin;
 
-  // Where moving folds a region through itself, those vertices move half as far, in every part
-  // (shared vertices move alike); pairs that crossed before moving are the part's own.
   const std::size_t n = parts.size();
   using Pairs = std::vector<std::array<std::int32_t, 2>>;
-  std::vector<Pairs> own(n);
+  std::vector<Pairs> own(n);  // pairs that crossed before moving: the part's own
   const double hair = 1e-5 * diagonal;
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
     TriMesh separated = parts[i].mesh;
     separate_pinches(separated, hair);
     own[i] = intersecting_triangles(separated, 1);
   });
-  // Where moving folds a region through itself, those vertices move half as far, in every part
-  // (shared vertices move alike); pairs that crossed before moving are the part's own.
-  std::vector<TriMesh> regions(n);
-  auto move_out = [&](std::size_t i) {
-    regions[i] = parts[i].mesh;
-    for (Vec3& v : regions[i].vertices)
-      if (const auto d = dirs.find(v); d != dirs.end()) v += push.at(v) * d->second;
-    separate_pinches(regions[i], hair);
-  };
+  // Where moving folds a region through itself, in every part (shared vertices move alike): a
+  // seam vertex of the crossing triangles splits, once; one split already joins again; any other
+  // moves half as far. Splitting only there keeps the cut away from seams elsewhere: it would
+  // pass within a float step of them.
+  const LengthMap seams = seam_insets(parts, outer);
+  LengthMap inset;                // the seam vertices split now
+  std::set<Vec3, VecLess> tried;  // and those split before
+  const EdgeOwners owner = outer_edge_owners(parts);
+  std::vector<Region> regions(n);
   constexpr int kHalvings = 12;
   std::vector<char> folds(n, 0);
-  for (int round = 0;; ++round) {
-    std::vector<std::set<Vec3, VecLess>> folded(n);
+  std::set<Vec3, VecLess> halved;  // vertices that ever moved less for a fold
+  std::vector<std::optional<std::pair<TriMesh, std::vector<std::int32_t>>>> results(n);
+  // Where a moved outer side still lies inside the solid, its corners that never folded move
+  // twice as far, and all is done again.
+  constexpr int kGrowths = 3;
+  for (int pass = 0;; ++pass) {
+    for (int round = 0;; ++round) {
+      std::vector<std::set<Vec3, VecLess>> folded(n);
+      tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
+        regions[i] = moved_region(parts[i], dirs, push, inset, owner);
+        separate_pinches(regions[i].mesh, hair);
+        if (!own[i].empty()) return;  // CGAL rejects it anyway
+        for (const auto& pair : intersecting_triangles(regions[i].mesh, ~0u))
+          for (std::int32_t t : pair)
+            for (std::int32_t v : regions[i].mesh.triangles[t])
+              folded[i].insert(regions[i].source[v]);
+      });
+      for (std::size_t i = 0; i < n; ++i) folds[i] = !folded[i].empty();
+      if (std::find(folds.begin(), folds.end(), 1) == folds.end() || round == kHalvings) break;
+      std::set<Vec3, VecLess> all;
+      for (const auto& vs : folded) all.insert(vs.begin(), vs.end());
+      for (const Vec3& v : all)
+        if (const auto seam = seams.find(v); seam != seams.end() && !tried.contains(v)) {
+          inset.insert(*seam);
+          tried.insert(v);
+        } else if (inset.erase(v) == 0) {
+          if (const auto it = push.find(v); it != push.end()) {
+            it->second *= 0.5;
+            halved.insert(v);
+          }
+        }
+    }
     tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
-      move_out(i);
-      if (!own[i].empty()) return;  // CGAL rejects it anyway
-      for (const auto& pair : intersecting_triangles(regions[i], ~0u))
-        for (std::int32_t t : pair)
-          for (std::int32_t v : parts[i].mesh.triangles[t])
-            folded[i].insert(parts[i].mesh.vertices[v]);
+      results[i].reset();
+      cut.problem[i].clear();
+      if (!own[i].empty())
+        cut.problem[i] = "the part intersects itself (triangles " + std::to_string(own[i][0][0]) +
+                         " and " + std::to_string(own[i][0][1]) + ")";
+      else if (folds[i])
+        cut.problem[i] = "its outer surface folds where it is moved out past the input surface";
+      else
+        results[i] = intersect(solid, regions[i].mesh, origins(regions[i]), cut.problem[i]);
     });
-    for (std::size_t i = 0; i < n; ++i) folds[i] = !folded[i].empty();
-    if (std::find(folds.begin(), folds.end(), 1) == folds.end() || round == kHalvings) break;
-    std::set<Vec3, VecLess> all;
-    for (const auto& vs : folded) all.insert(vs.begin(), vs.end());
-    for (const Vec3& v : all)
-      if (const auto it = push.find(v); it != push.end()) it->second *= 0.5;
+    std::set<Vec3, VecLess> grow;
+    for (std::size_t i = 0; i < n; ++i)
+      if (results[i])
+        for (std::int32_t o : results[i]->second)
+          if (o < kFromSolid)
+            for (std::int32_t v : regions[i].mesh.triangles[kFromSolid - 1 - o])
+              if (const Vec3& p = regions[i].source[v]; push.contains(p) && !halved.contains(p))
+                grow.insert(p);
+    if (grow.empty() || pass == kGrowths) break;
+    for (const Vec3& p : grow) push.at(p) *= 2.0;
   }
   double largest = 0.0;
   for (const auto& [p, d] : push) largest = std::max(largest, d);
   cut.push_mm = largest;
 
-  std::vector<std::optional<std::pair<TriMesh, std::vector<std::int32_t>>>> results(n);
-  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
-    if (!own[i].empty())
-      cut.problem[i] = "the part intersects itself (triangles " +
-                       std::to_string(own[i][0][0]) + " and " + std::to_string(own[i][0][1]) +
-                       ")";
-    else if (folds[i])
-      cut.problem[i] = "its outer surface folds where it is moved out past the input surface";
-    else
-      results[i] = intersect(solid, regions[i], parts[i].triangle_neighbor, cut.problem[i]);
-  });
   // A sliver part can lie wholly between the tet mesh's boundary and the input surface: cut, it
   // is empty. Its tets go to the neighbour it shares the most interface with.
   std::vector<std::int32_t> heir(n, -1);
@@ -354,7 +545,7 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
       part.triangle_neighbor.assign(origin.size(), -1);
       for (std::size_t t = 0; t < origin.size(); ++t) {
         if (origin[t] >= 0) part.triangle_neighbor[t] = origin[t];
-        if (origin[t] == -1) ++kept_cut.uncovered_triangles;
+        if (origin[t] < kFromSolid) ++kept_cut.uncovered_triangles;
       }
       part.volume_mm3 = signed_volume(part.mesh);
     }
