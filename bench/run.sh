@@ -52,6 +52,7 @@ for m in $models; do
     rm -rf "${keep:?}/$m"
     cp -r "$tmp/$m-1" "$keep/$m"
     "$build/dhfcast" check "$tmp/$m-1" --input "$f" > "$keep/$m.check.txt" 2>&1 || true
+    cp "$tmp/$m-check.json" "$keep/$m.check.json"
   fi
   /usr/bin/python3 - "$m" "$tmp" "$runs" "${paper[$m]:-- - - - -}" "$check_start" "$check_end" <<'PY'
 import json, statistics, sys
