@@ -343,8 +343,8 @@ Sandwiches count_sandwiched(const TetMesh& tets, const std::vector<std::int32_t>
 }
 
 // Settles the parts in `order` (settle()), then hands out the pieces parts fell into: all but
-// a part's largest go to a neighbour that takes them without new sandwiches, or, when tiny, to
-// one in any case. Returns the labeling; counts the pieces in `repair`.
+// a part's largest go to a neighbour that takes them without new sandwiches, and every tiny
+// part to one in any case. Returns the labeling; counts the pieces in `repair`.
 std::vector<std::int32_t> settle_all(Parts s, const std::vector<std::int32_t>& order,
                                      const SandwichOptions& opts, SandwichRepair& repair) {
   const std::int32_t n = static_cast<std::int32_t>(s.owner.size());
@@ -380,7 +380,9 @@ std::vector<std::int32_t> settle_all(Parts s, const std::vector<std::int32_t>& o
     }
     std::vector<std::int32_t> pieces;
     for (std::int32_t c = 0; c < now_parts; ++c)
-      if (largest[settled_owner[members[c].front()]] != c) pieces.push_back(c);
+      if (largest[settled_owner[members[c].front()]] != c ||
+          piece_volume[c] < opts.tiny_piece_share * total_volume)
+        pieces.push_back(c);
     std::stable_sort(pieces.begin(), pieces.end(), [&](std::int32_t a, std::int32_t b) {
       return piece_volume[a] < piece_volume[b];
     });
