@@ -38,8 +38,8 @@ std::vector<Part> extract_parts(const TetMesh& tets, const std::vector<std::int3
 // Options for absorb_sandwiched_tets().
 struct SandwichOptions {
   std::int32_t max_rounds = 40;  // rounds per part (each fills or cuts); 0: only count
-  // A part (or a piece a part falls into) smaller than this share of the solid's volume goes to
-  // a neighbouring part even where that part's direction does not allow all of it: a part that
+  // A piece a part falls into that is smaller than this share of the solid's volume goes to a
+  // neighbouring part even where that part's direction does not allow all of it: a part that
   // small is not worth a mold of its own.
   double tiny_piece_share = 0.01;
 };
@@ -88,8 +88,9 @@ using TetAllowsLabel =
 // side of the gap with less volume, each face-connected piece whole to a neighbouring part that
 // allows all of it and, if settled, gains no sandwich; tets P gave up never come back. Rounds
 // repeat until no gap is left, nothing moves, or opts.max_rounds. Afterwards, every piece a part
-// fell into other than its largest goes whole to such a neighbour, and every part or piece under
-// opts.tiny_piece_share of the solid to the neighbour whose direction allows most of it.
+// fell into other than its largest goes whole to such a neighbour, and a piece under
+// opts.tiny_piece_share of the solid (or a whole part under 1e-4 of it, a fragment of a few
+// tets) to the neighbour whose direction allows most of it.
 // Which parts settle first matters: largest first and smallest first are both tried, and the
 // labeling kept, among those and the start, has the smallest worst_share, then fewest parts.
 // Only tets of the same region are exchanged.

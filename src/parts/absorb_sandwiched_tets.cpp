@@ -16,6 +16,11 @@
 namespace dhfcast {
 namespace {
 
+// A whole part smaller than this share of the solid is a fragment the repair left (a few tets):
+// it goes to a neighbour. Larger small parts stay: forcing them into a neighbour costs that
+// neighbour its DHF property, or makes it touch itself.
+constexpr double kFragmentShare = 1e-4;
+
 // Calls visit(u) for every tet u the ray x + s * d, s > 0, enters after tet t, until it leaves
 // the tet mesh or visit returns false. Each step leaves the current tet through the face whose
 // plane the ray reaches first among those it points out of, so every step makes progress even
@@ -343,8 +348,9 @@ Sandwiches count_sandwiched(const TetMesh& tets, const std::vector<std::int32_t>
 }
 
 // Settles the parts in `order` (settle()), then hands out the pieces parts fell into: all but
-// a part's largest go to a neighbour that takes them without new sandwiches, and every tiny
-// part to one in any case. Returns the labeling; counts the pieces in `repair`.
+// a part's largest go to a neighbour that takes them without new sandwiches, or, when tiny, to
+// one in any case; so do whole parts that are mere fragments (a few tets at the surface).
+// Returns the labeling; counts the pieces in `repair`.
 std::vector<std::int32_t> settle_all(Parts s, const std::vector<std::int32_t>& order,
                                      const SandwichOptions& opts, SandwichRepair& repair) {
   const std::int32_t n = static_cast<std::int32_t>(s.owner.size());
@@ -381,7 +387,7 @@ std::vector<std::int32_t> settle_all(Parts s, const std::vector<std::int32_t>& o
     std::vector<std::int32_t> pieces;
     for (std::int32_t c = 0; c < now_parts; ++c)
       if (largest[settled_owner[members[c].front()]] != c ||
-          piece_volume[c] < opts.tiny_piece_share * total_volume)
+          piece_volume[c] < kFragmentShare * total_volume)
         pieces.push_back(c);
     std::stable_sort(pieces.begin(), pieces.end(), [&](std::int32_t a, std::int32_t b) {
       return piece_volume[a] < piece_volume[b];
