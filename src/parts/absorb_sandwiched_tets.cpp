@@ -134,26 +134,18 @@ struct Parts {
   }
 };
 
-// Face-connected components of the tets with mark[t]; returns their tets.
+// Face-connected components of the tets with mark[t], by smallest tet; returns their tets.
 std::vector<std::vector<std::int32_t>> marked_components(const TetMesh& tets,
-                                                         const std::vector<char>& mark) {
-  const std::int32_t n = static_cast<std::int32_t>(mark.size());
-  std::vector<char> seen(n, 0);
-  std::vector<std::vector<std::int32_t>> out;
-  for (std::int32_t s = 0; s < n; ++s) {
-    if (!mark[s] || seen[s]) continue;
-    std::vector<std::int32_t> c{s};
-    seen[s] = 1;
-    for (std::size_t i = 0; i < c.size(); ++i)
-      for (std::int32_t u : tets.neighbors[c[i]])
-        if (u >= 0 && mark[u] && !seen[u]) {
-          seen[u] = 1;
-          c.push_back(u);
-        }
-    std::sort(c.begin(), c.end());
-    out.push_back(std::move(c));
-  }
-  return out;
+                                                        const std::vector<char>& mark) {
+  const std::vector<std::int32_t> as_label(mark.begin(), mark.end());
+  std::int32_t count = 0;
+  const std::vector<std::int32_t> component = detail::label_components(
+      tets, as_label, std::vector<std::int32_t>(mark.size(), 0), count);
+  std::vector<std::vector<std::int32_t>> members(count);
+  for (std::size_t t = 0; t < mark.size(); ++t)
+    if (mark[t]) members[component[t]].push_back(static_cast<std::int32_t>(t));
+  std::erase_if(members, [](const auto& c) { return c.empty(); });
+  return members;
 }
 
 // Gives the tets of `piece` (all owned by one part) to a neighbouring part that allows all of
