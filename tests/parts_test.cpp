@@ -719,7 +719,7 @@ void expect_collision_free(const AssemblyPlan& plan, std::size_t num_parts) {
 using Blocks = std::vector<std::vector<std::int32_t>>;
 using Flags = std::vector<bool>;
 
-constexpr double kTolerance_mm = 0.01;
+constexpr double kTolerance_mm = 0.5;  // depth; the cells are 2.5 to 10 mm
 
 TEST(PlanAssembly, BlockedBottomOfAStackLeavesDownwards) {
   // Both leave up: the top is in the bottom's way, so the bottom (part 0, smallest id) leaves
@@ -951,7 +951,8 @@ TEST(PlanAssembly, NegativeToleranceThrows) {
 // --- brute-force reference and real shapes ---
 
 // Blocking by brute force, in double precision: from the same sample points (assembly_samples),
-// clip the ray against every tet of every other part and merge the intervals per part.
+// clip the ray against every tet of every other part, merge the intervals per part, and measure
+// their depth against every triangle of that part.
 std::vector<std::vector<std::int32_t>> reference_blocks(const TetMesh& mesh,
                                                         const std::vector<Part>& parts,
                                                         double tolerance_mm) {
@@ -962,6 +963,20 @@ std::vector<std::vector<std::int32_t>> reference_blocks(const TetMesh& mesh,
     return mesh.vertices[mesh.tets[t][k]];
   };
   const std::vector<std::vector<Vec3>> all_samples = assembly_samples(parts);
+  // Does the way from o + lo d to o + hi d, taken every tolerance_mm / 2, get farther than
+  // tolerance_mm from every triangle of part a?
+  auto deep = [&](std::size_t a, const Vec3& o, const Vec3& d, double lo, double hi) {
+    const TriMesh& m = parts[a].mesh;
+    for (double t = lo + tolerance_mm; t < hi - tolerance_mm; t += 0.5 * tolerance_mm) {
+      const Vec3 p = o + t * d;
+      double nearest = INFINITY;
+      for (const Tri& tri : m.triangles)
+        nearest = std::min(nearest, (closest_on_triangle(p, m.vertices[tri[0]], m.vertices[tri[1]],
+                                                         m.vertices[tri[2]]) - p).norm());
+      if (nearest >= tolerance_mm) return true;
+    }
+    return false;
+  };
   std::vector<std::set<std::int32_t>> blocks(parts.size());
   for (const Part& b : parts) {
     const std::vector<Vec3>& samples = all_samples[b.id];
@@ -990,7 +1005,8 @@ std::vector<std::vector<std::int32_t>> reference_blocks(const TetMesh& mesh,
         for (std::size_t k = 0; k < s.size();) {
           double lo = s[k].first, hi = s[k].second;
           for (++k; k < s.size() && s[k].first <= hi + 1e-9; ++k) hi = std::max(hi, s[k].second);
-          if (hi - lo > tolerance_mm) blocks[b.id].insert(static_cast<std::int32_t>(a));
+          if (hi - lo > 2 * tolerance_mm && deep(a, o, d, lo, hi))
+            blocks[b.id].insert(static_cast<std::int32_t>(a));
         }
       }
     }
@@ -1008,9 +1024,10 @@ TEST(PlanAssembly, MatchesBruteForceOnAJitteredGridWithObliqueDirections) {
       {Vec3(0.2, -0.3, 1.0), Vec3(-1.0, 0.5, 0.1), Vec3(0.1, 1.0, -0.4), Vec3(0.6, 0.6, -0.5)});
   ASSERT_GT(parts.size(), 5u);
   expect_valid_parts(g, parts);
-  const AssemblyPlan plan = plan_assembly(parts, {}, kTolerance_mm);
-  expect_plan_follows(plan, parts, reference_blocks(g.mesh, parts, kTolerance_mm),
-                      reference_blocks(g.mesh, flipped(parts), kTolerance_mm));
+  constexpr double kDepth_mm = 0.3;  // of 4 mm cells: shallow paths near edges do not block
+  const AssemblyPlan plan = plan_assembly(parts, {}, kDepth_mm);
+  expect_plan_follows(plan, parts, reference_blocks(g.mesh, parts, kDepth_mm),
+                      reference_blocks(g.mesh, flipped(parts), kDepth_mm));
   EXPECT_GT(std::ranges::count(reversed_parts(plan, parts), true), 0);
   std::size_t pairs = 0;
   for (const auto& b : plan.blocks) pairs += b.size();

@@ -39,6 +39,27 @@ void collect_hit(const RTCFilterFunctionNArguments* args) {
   args->valid[0] = 0;
 }
 
+// A point query for one part's triangles within a radius; stops at the first.
+struct NearQuery {
+  const TriMesh* mesh;
+  unsigned part;
+  Vec3 p;
+  double radius_mm;
+  bool found;
+};
+
+bool near_triangle(RTCPointQueryFunctionArguments* args) {
+  auto* q = static_cast<NearQuery*>(args->userPtr);
+  if (args->geomID != q->part) return false;
+  const Tri& t = q->mesh->triangles[args->primID];
+  const std::vector<Vec3>& v = q->mesh->vertices;
+  if ((closest_on_triangle(q->p, v[t[0]], v[t[1]], v[t[2]]) - q->p).norm() >= q->radius_mm)
+    return false;
+  q->found = true;
+  args->query->radius = 0.0f;  // nothing more to look for
+  return true;
+}
+
 // One Embree scene holding every part's boundary; geometry id = part id.
 class PartScene {
  public:
@@ -79,6 +100,21 @@ class PartScene {
   }
   PartScene(const PartScene&) = delete;
   PartScene& operator=(const PartScene&) = delete;
+
+  // Whether part q's boundary passes within radius_mm of p. Thread-safe.
+  bool near(std::int32_t q, const Vec3& p, double radius_mm) const {
+    NearQuery near{&parts_[q].mesh, static_cast<unsigned>(q), p, radius_mm, false};
+    RTCPointQuery query;
+    query.x = static_cast<float>(p.x());
+    query.y = static_cast<float>(p.y());
+    query.z = static_cast<float>(p.z());
+    query.time = 0.0f;
+    query.radius = static_cast<float>(radius_mm);
+    RTCPointQueryContext context;
+    rtcInitPointQueryContext(&context);
+    rtcPointQuery(scene_, &query, &context, near_triangle, &near);
+    return near.found;
+  }
 
   // Every crossing of the ray origin + t * dir, t > 0, with the parts' boundaries, sorted by t.
   // Embree only finds the triangles; t and the side are computed in double precision. Faces
@@ -154,11 +190,13 @@ std::vector<Vec3> boundary_samples(const TriMesh& mesh, double spacing, double i
   return samples;
 }
 
-// Parts whose interior the ray from a point of part `self` runs through over more than
-// tolerance_mm, given its crossings sorted by t. entered_at (one slot per part, all -1) is
-// scratch space, left all -1 again.
+// Parts whose interior the ray from a point of part `self` runs through, given its crossings
+// sorted by t, where deep(part, t_in, t_out) says the stretch inside goes deeper than
+// tolerance_mm. entered_at (one slot per part, all -1) is scratch space, left all -1 again.
+template <class Deep>
 void mark_obstacles(const std::vector<Crossing>& crossings, std::int32_t self, double tolerance_mm,
-                    std::vector<std::int32_t>& entered_at, std::vector<std::int32_t>& found) {
+                    const Deep& deep, std::vector<std::int32_t>& entered_at,
+                    std::vector<std::int32_t>& found) {
   found.clear();
   for (std::size_t k = 0; k < crossings.size(); ++k) {
     const Crossing& c = crossings[k];
@@ -174,7 +212,9 @@ void mark_obstacles(const std::vector<Crossing>& crossings, std::int32_t self, d
       // Repeated entries (a hit on an edge shared by two triangles) count once.
       if (!grazing && entry < 0) entry = static_cast<std::int32_t>(k);
     } else if (entry >= 0) {
-      if (c.t_mm - crossings[entry].t_mm > tolerance_mm) found.push_back(c.part);
+      // Every point of a stretch is within half its length of its ends, on the surface.
+      const double t_in = crossings[entry].t_mm;
+      if (c.t_mm - t_in > 2 * tolerance_mm && deep(c.part, t_in, c.t_mm)) found.push_back(c.part);
       entry = -1;
     }
   }
@@ -284,7 +324,21 @@ class Collisions {
                         for (std::size_t s = range.begin(); s != range.end(); ++s) {
                           if (stop && stop->load(std::memory_order_relaxed)) return;
                           scene_.crossings(samples[s], dir, hits, crossings);
-                          mark_obstacles(crossings, p, tolerance_mm_, entered_at, found);
+                          const Vec3& origin = samples[s];
+                          // The middle first (usually the deepest point of a way through), then
+                          // every half tolerance, as `dhfcast check` steps.
+                          auto deep = [&](std::int32_t q, double t_in, double t_out) {
+                            if (tolerance_mm_ == 0.0) return true;
+                            auto far = [&](double t) {
+                              return !scene_.near(q, origin + t * dir, tolerance_mm_);
+                            };
+                            if (far(0.5 * (t_in + t_out))) return true;
+                            for (double t = t_in + tolerance_mm_; t < t_out - tolerance_mm_;
+                                 t += 0.5 * tolerance_mm_)
+                              if (far(t)) return true;
+                            return false;
+                          };
+                          mark_obstacles(crossings, p, tolerance_mm_, deep, entered_at, found);
                           for (const std::int32_t q : found) obstacle(q);
                         }
                       });

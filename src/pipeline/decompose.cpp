@@ -212,10 +212,10 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   d.outer_smoothness = outer_surface_smoothness(d.parts);
   if (opts.exact_outer_surface) d.solid_cut = cut_parts_from_solid(solid, d.parts);
   // A part leaves along its own +-d when it can, else along another part's (interfaces follow
-  // them) or one of a coarse set of directions over the sphere. A path counts as blocked when it runs through another
-  // part over more than epsilon; a shorter one goes at most epsilon / 2 deep, within what
-  // `dhfcast check` allows.
-  d.assembly_tolerance_mm = opts.access.epsilon_mm;
+  // them) or one of a coarse set of directions over the sphere. A move counts as blocked when it
+  // goes deeper than epsilon / 2 into another part: half what `dhfcast check` allows, as check
+  // draws other points of the surface.
+  d.assembly_tolerance_mm = 0.5 * opts.access.epsilon_mm;
   std::vector<Vec3> removal_directions;
   for (const Part& p : d.parts) removal_directions.insert(removal_directions.end(), {p.direction, -p.direction});
   for (const Vec3& v : fibonacci_directions(kAssemblyDirections)) removal_directions.push_back(v);
