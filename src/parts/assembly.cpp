@@ -104,12 +104,8 @@ class PartScene {
   // Whether part q's boundary passes within radius_mm of p. Thread-safe.
   bool near(std::int32_t q, const Vec3& p, double radius_mm) const {
     NearQuery near{&parts_[q].mesh, static_cast<unsigned>(q), p, radius_mm, false};
-    RTCPointQuery query;
-    query.x = static_cast<float>(p.x());
-    query.y = static_cast<float>(p.y());
-    query.z = static_cast<float>(p.z());
-    query.time = 0.0f;
-    query.radius = static_cast<float>(radius_mm);
+    const Eigen::Vector3f at = p.cast<float>();
+    RTCPointQuery query{at.x(), at.y(), at.z(), 0.0f, static_cast<float>(radius_mm)};
     RTCPointQueryContext context;
     rtcInitPointQueryContext(&context);
     rtcPointQuery(scene_, &query, &context, near_triangle, &near);
