@@ -280,17 +280,13 @@ void flatten_disc(HeightGrid& g, double xc, double yc, double radius, double hei
         g.h[g.id(i, j)] = height;
 }
 
-// Where the surface that bounds one half must pass on a line along d (heights along d, mm).
-struct Range {
-  double lo = -INFINITY, hi = INFINITY;
-};
-
 // A point of the part's footprint where the surfaces bounding the up and the down half are
-// held: each surface's height there is the weighted sum of three grid nodes' heights.
+// held: each surface's height there is the weighted sum of three grid nodes' heights, and must
+// be at least up_min (up half) and at most down_max (down half), heights along d in mm.
 struct FitPoint {
   std::array<int, 3> node{};
   std::array<double, 3> weight{};
-  Range up, down;
+  double up_min = -INFINITY, down_max = INFINITY;
 };
 
 // Does the stretch (t0, t1) of the line origin + t * d reach deeper than epsilon from the part's
@@ -305,27 +301,29 @@ bool deeper_than(const LineIndex& index, const Vec3& origin, const Vec3& d, doub
   return false;
 }
 
-// Targets on a line meeting the part in `in` (parameters = heights along d). The up half is
-// pulled along +d past everything above it, so it must begin inside the topmost stretch; the
-// down half must end inside the lowest one. Gaps between stretches that the undercut tolerance
-// accepts (none deeper than epsilon: the dhf check's rule) are then left to neither half (the
-// cast fills them, within epsilon of the part): a half holding one could not leave it. A
-// stretch no deeper than epsilon holds nothing back (the molds check's rule: a sweep along a
-// wall). Kept a quarter of epsilon inside the stretch, so that float rounding does not move a
-// half's face onto the part's. nullopt: the line is not a double height field up to the
-// tolerance, and no half releases there whatever the surfaces do.
-std::optional<std::pair<Range, Range>> line_targets(const std::vector<LineInterval>& in,
-                                                    const LineIndex& index, const Vec3& origin,
-                                                    const Vec3& d, double epsilon_mm) {
+// What release asks of the two surfaces on a line meeting the part in `in` (parameters =
+// heights along d): the up half is pulled along +d past everything above it, so its surface
+// must be at least the bottom of the topmost stretch; the down half's at most the top of the
+// lowest. Gaps between stretches that the undercut tolerance accepts (none deeper than epsilon:
+// the dhf check's rule) are then left to neither half: the cast fills them, within epsilon of
+// the part, where a half holding one could not leave. A stretch no deeper than epsilon / 2
+// from the part's surface (a line along a wall) asks nothing: a sweep across it does not go
+// deeper than epsilon, the molds check's rule, with a margin for lines beside this one. A
+// quarter of epsilon inside the stretch, so that float rounding does not move a half's face
+// onto the part's. {up_min, down_max}; nullopt: the line is not a double height field up to
+// the tolerance, and no half releases there whatever the surfaces do.
+std::optional<std::pair<double, double>> release_bounds(const std::vector<LineInterval>& in,
+                                                        const LineIndex& index, const Vec3& origin,
+                                                        const Vec3& d, double epsilon_mm) {
   if (in.empty()) return std::nullopt;
   for (std::size_t k = 0; k + 1 < in.size(); ++k)
-    if (deeper_than(index, origin, d, in[k].end, in[k + 1].begin, epsilon_mm))
-      return std::nullopt;
-  auto within = [&](const LineInterval& iv) {
-    if (!deeper_than(index, origin, d, iv.begin, iv.end, 0.5 * epsilon_mm)) return Range{};
-    return Range{iv.begin + 0.25 * epsilon_mm, iv.end - 0.25 * epsilon_mm};
+    if (deeper_than(index, origin, d, in[k].end, in[k + 1].begin, epsilon_mm)) return std::nullopt;
+  auto holds = [&](const LineInterval& iv) {
+    return deeper_than(index, origin, d, iv.begin, iv.end, 0.5 * epsilon_mm);
   };
-  return std::pair{within(in.back()), within(in.front())};
+  const double margin = 0.25 * epsilon_mm;
+  return std::pair{holds(in.back()) ? in.back().begin + margin : -INFINITY,
+                   holds(in.front()) ? in.front().end - margin : INFINITY};
 }
 
 // The grid triangle under local (x, y) and the point's barycentric weights on its nodes (the
@@ -346,39 +344,35 @@ FitPoint fit_point(const HeightGrid& g, double px, double py) {
   return p;
 }
 
-// Moves the node heights of the surfaces bounding the up and the down half until both keep to
-// their targets at every fit point: the grid's nodes alone do not stop a cell's flat triangle
-// from leaving a thin or creased part between them, and a half reaching under (over) the part
-// there could not be pulled off. Cyclic projections onto each violated target (Kaczmarz), in a
-// fixed order so the result does not depend on threads; after each round the up surface is
-// lifted to the down one where it fell below (the halves would overlap).
+// Raises the up half's surface and lowers the down half's (node heights, starting from the
+// parting surface) until both meet their bounds at every fit point: the grid's nodes alone do
+// not stop a flat cell from leaving a thin or bent part, or the end of a lip, between them.
+// Cyclic projections onto each unmet bound (Kaczmarz), in a fixed order so the result does not
+// depend on threads. The bounds only push one way, so they can always all be met, and the up
+// surface never falls below the down one; nodes stay below `top` and above `bottom`.
 void fit_surfaces(std::vector<double>& up, std::vector<double>& down,
-                  const std::vector<FitPoint>& points, const std::vector<Range>& node_up,
-                  const std::vector<Range>& node_down) {
+                  const std::vector<FitPoint>& points, double bottom, double top) {
   constexpr int kRounds = 200;
   constexpr double kTolerance = 1e-9;  // mm
   for (int round = 0; round < kRounds; ++round) {
-    double worst = 0.0;
+    bool moved = false;
     for (const FitPoint& p : points)
-      for (auto [h, range] : {std::pair{&up, p.up}, std::pair{&down, p.down}}) {
+      for (auto [h, sign, bound] : {std::tuple{&up, 1.0, p.up_min}, {&down, -1.0, -p.down_max}}) {
+        // sign * height >= bound
         double value = 0.0, norm2 = 0.0;
         for (int q = 0; q < 3; ++q) {
           value += p.weight[q] * (*h)[p.node[q]];
           norm2 += p.weight[q] * p.weight[q];
         }
-        const double miss = value < range.lo - kTolerance   ? range.lo - value
-                            : value > range.hi + kTolerance ? range.hi - value
-                                                            : 0.0;
-        if (miss == 0.0) continue;
-        worst = std::max(worst, std::abs(miss));
-        for (int q = 0; q < 3; ++q) (*h)[p.node[q]] += miss * p.weight[q] / norm2;
+        const double miss = bound - sign * value;
+        if (miss <= kTolerance) continue;
+        moved = true;
+        for (int q = 0; q < 3; ++q) {
+          double& node = (*h)[p.node[q]];
+          node = std::clamp(node + sign * miss * p.weight[q] / norm2, bottom, top);
+        }
       }
-    for (std::size_t k = 0; k < up.size(); ++k) {
-      up[k] = std::clamp(up[k], node_up[k].lo, node_up[k].hi);
-      down[k] = std::clamp(down[k], node_down[k].lo, node_down[k].hi);
-      if (up[k] < down[k]) up[k] = down[k] = 0.5 * (up[k] + down[k]);
-    }
-    if (worst == 0.0) return;
+    if (!moved) return;
   }
 }
 
@@ -598,18 +592,25 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
     (t == 0 ? mold.sprues : mold.vents).push_back(ch);
   }
 
-  // --- 6. the surfaces bounding each half: the parting surface moved, where needed, to pass
-  // inside the part on every line through a grid node or a point of the part's faces (the part
-  // bends and ends between nodes), and apart across the gaps the tolerance accepts ---
-  // Points of the part's faces half a cell apart (a hair inside each face, so that their lines
-  // do not run along the walls the faces' edges may top).
+  // --- 6. the surfaces bounding each half: the parting surface, the up half's raised and the
+  // down half's lowered where release needs it on the line through a grid node or a point of
+  // the part's faces (the part bends and ends between nodes), so they part across the gaps the
+  // tolerance accepts ---
+  // Points of the part's faces, half a cell apart across d (a hair inside each face, so that
+  // their lines do not run along the walls its edges may top); a face smaller than that gives
+  // its centroid. Walls (faces along d) are left out: lines along them bind nothing, and the
+  // faces above and below them give the lines beside them.
   std::vector<Vec3> on_part;
   for (const Tri& t : cavity.triangles) {
     const Vec3 &a = cavity.vertices[t[0]], &b = cavity.vertices[t[1]], &c = cavity.vertices[t[2]];
+    const Vec3 normal = (b - a).cross(c - a);
+    if (std::abs(normal.dot(d)) <= 0.05 * normal.norm()) continue;
     const Vec3 centroid = (a + b + c) / 3.0;
-    const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-    const int n = std::clamp(static_cast<int>(std::ceil(longest / (0.5 * g.s))), 1, 64);
-    for (int i = 0; i <= n; ++i)
+    auto across = [&](const Vec3& e) { return (e - e.dot(d) * d).norm(); };
+    const double longest = std::max({across(b - a), across(c - b), across(a - c)});
+    const int n = std::min(static_cast<int>(longest / (0.5 * g.s)), 64);
+    if (n == 0) on_part.push_back(centroid);
+    for (int i = 0; i <= n && n > 0; ++i)
       for (int j = 0; i + j <= n; ++j) {
         const Vec3 p = (i * a + j * b + (n - i - j) * c) / double(n);
         on_part.push_back(centroid + 0.98 * (p - centroid));
@@ -621,34 +622,21 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
     const bool surface_point = k < num_on_part;
     const int node = static_cast<int>(k - num_on_part);
     const Vec3 at = surface_point ? frame.local(on_part[k])
-                           : Vec3(g.x(node % (g.nx + 1)), g.y(node / (g.nx + 1)), 0.0);
+                                  : Vec3(g.x(node % (g.nx + 1)), g.y(node / (g.nx + 1)), 0.0);
     const Vec3 origin = frame.world(Vec3(at.x(), at.y(), 0.0));
     const std::vector<LineInterval> in =
         surface_point ? robust_line_intervals(index, origin, d, hair) : node_lines[node];
-    if (const auto targets = line_targets(in, index, origin, d, opts.epsilon_mm)) {
+    if (const auto bounds = release_bounds(in, index, origin, d, opts.epsilon_mm)) {
       FitPoint p = fit_point(g, at.x(), at.y());
-      std::tie(p.up, p.down) = *targets;
-      // Between nodes only what release needs: the up half above (the down half below) the
-      // part. A half short of the part there leaves the cast a fin thinner than the cell's
-      // bend, where holding the surface both ways could not be met.
-      if (surface_point) p.up.hi = INFINITY, p.down.lo = -INFINITY;
-      candidates[k] = p;
+      std::tie(p.up_min, p.down_max) = *bounds;
+      if (p.up_min > -INFINITY || p.down_max < INFINITY) candidates[k] = p;
     }
   });
   std::vector<FitPoint> fit;
   for (const std::optional<FitPoint>& p : candidates)
     if (p) fit.push_back(*p);
-  // A node's own line holds it hard; every node stays well inside the block.
-  const Range inside_block{w_bottom + 0.5 * wall, w_top - 0.5 * wall};
-  std::vector<Range> node_up(nodes, inside_block), node_down(nodes, inside_block);
-  for (int k = 0; k < nodes; ++k)
-    if (const std::optional<FitPoint>& p = candidates[num_on_part + k]) {
-      node_up[k] = {std::max(p->up.lo, inside_block.lo), std::min(p->up.hi, inside_block.hi)};
-      node_down[k] = {std::max(p->down.lo, inside_block.lo),
-                      std::min(p->down.hi, inside_block.hi)};
-    }
   HeightGrid up_surface = g, down_surface = g;
-  fit_surfaces(up_surface.h, down_surface.h, fit, node_up, node_down);
+  fit_surfaces(up_surface.h, down_surface.h, fit, w_bottom + 0.5 * wall, w_top - 0.5 * wall);
 
   // --- 7. halves: block halves minus the cavity and channels; bumps on down, sockets in up ---
   TriMesh up_block = block_half(up_surface, w_top), down_block = block_half(down_surface, w_bottom);
