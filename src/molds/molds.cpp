@@ -302,28 +302,37 @@ bool deeper_than(const LineIndex& index, const Vec3& origin, const Vec3& d, doub
 }
 
 // What release asks of the two surfaces on a line meeting the part in `in` (parameters =
-// heights along d): the up half is pulled along +d past everything above it, so its surface
-// must be at least the bottom of the topmost stretch; the down half's at most the top of the
-// lowest. Gaps between stretches that the undercut tolerance accepts (none deeper than epsilon:
-// the dhf check's rule) are then left to neither half: the cast fills them, within epsilon of
-// the part, where a half holding one could not leave. A stretch no deeper than epsilon / 2
-// from the part's surface (a line along a wall) asks nothing: a sweep across it does not go
-// deeper than epsilon, the molds check's rule, with a margin for lines beside this one. A
-// quarter of epsilon inside the stretch, so that float rounding does not move a half's face
-// onto the part's. {up_min, down_max}; nullopt: the line is not a double height field up to
-// the tolerance, and no half releases there whatever the surfaces do.
+// heights along d), where the parting surface is at `parting`: the up half is pulled along +d
+// past everything above it, so its surface must be at least the bottom of the topmost
+// stretch; the down half's at most the top of the lowest. Gaps between stretches that the
+// undercut tolerance accepts (none deeper than epsilon: the dhf check's rule) are then left to
+// neither half: the cast fills them, within epsilon of the part, where a half holding one could
+// not leave. A stretch no deeper than epsilon / 2 from the part's surface (a line along a wall)
+// asks nothing: a sweep across it does not go deeper than epsilon, the molds check's rule, with
+// a margin for lines beside this one. A quarter of epsilon inside the stretch, so that float
+// rounding does not move a half's face onto the part's. {up_min, down_max}; nullopt when the
+// parting surface already meets both (the fit only raises the up surface and lowers the down
+// one), or the line is not a double height field up to the tolerance and no half releases
+// there whatever the surfaces do. The depth tests run only where a bound would bind.
 std::optional<std::pair<double, double>> release_bounds(const std::vector<LineInterval>& in,
-                                                        const LineIndex& index, const Vec3& origin,
-                                                        const Vec3& d, double epsilon_mm) {
+                                                        double parting, const LineIndex& index,
+                                                        const Vec3& origin, const Vec3& d,
+                                                        double epsilon_mm) {
   if (in.empty()) return std::nullopt;
+  const double margin = 0.25 * epsilon_mm;
+  double up_min = in.back().begin + margin, down_max = in.front().end - margin;
+  if (parting >= up_min) up_min = -INFINITY;
+  if (parting <= down_max) down_max = INFINITY;
+  if (up_min == -INFINITY && down_max == INFINITY) return std::nullopt;
   for (std::size_t k = 0; k + 1 < in.size(); ++k)
     if (deeper_than(index, origin, d, in[k].end, in[k + 1].begin, epsilon_mm)) return std::nullopt;
   auto holds = [&](const LineInterval& iv) {
     return deeper_than(index, origin, d, iv.begin, iv.end, 0.5 * epsilon_mm);
   };
-  const double margin = 0.25 * epsilon_mm;
-  return std::pair{holds(in.back()) ? in.back().begin + margin : -INFINITY,
-                   holds(in.front()) ? in.front().end - margin : INFINITY};
+  if (up_min > -INFINITY && !holds(in.back())) up_min = -INFINITY;
+  if (down_max < INFINITY && !holds(in.front())) down_max = INFINITY;
+  if (up_min == -INFINITY && down_max == INFINITY) return std::nullopt;
+  return std::pair{up_min, down_max};
 }
 
 // The grid triangle under local (x, y) and the point's barycentric weights on its nodes (the
@@ -626,10 +635,11 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
     const Vec3 origin = frame.world(Vec3(at.x(), at.y(), 0.0));
     const std::vector<LineInterval> in =
         surface_point ? robust_line_intervals(index, origin, d, hair) : node_lines[node];
-    if (const auto bounds = release_bounds(in, index, origin, d, opts.epsilon_mm)) {
+    if (const auto bounds =
+            release_bounds(in, g.height(at.x(), at.y()), index, origin, d, opts.epsilon_mm)) {
       FitPoint p = fit_point(g, at.x(), at.y());
       std::tie(p.up_min, p.down_max) = *bounds;
-      if (p.up_min > -INFINITY || p.down_max < INFINITY) candidates[k] = p;
+      candidates[k] = p;
     }
   });
   std::vector<FitPoint> fit;
