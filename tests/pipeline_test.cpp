@@ -255,8 +255,11 @@ TEST(Pipeline, SpoolPartsComeApartAlongEachOthersDirections) {
   }
   EXPECT_GT(sideways, 0);
   const CheckReport report = check_written(input, opts, d, "spool");
-  for (const CheckItem& item : report.items)
-    if (item.name == "assembly") EXPECT_TRUE(item.passed) << item.summary;
+  for (const CheckItem& item : report.items) {
+    if (item.name == "assembly") {
+      EXPECT_TRUE(item.passed) << item.summary;
+    }
+  }
 }
 
 TEST(Pipeline, ConvexSolidIsOnePart) {

@@ -235,11 +235,13 @@ std::vector<std::vector<Vec3>> assembly_samples(const std::vector<Part>& parts);
 
 // Finds which parts block which and orders them: disassembly takes out a part that no remaining
 // part blocks; assembly is the reverse. A part may leave along +d, then -d (smallest id first);
-// only when no remaining part can, along `extra_directions`, in their order. Taking a part out never blocks another, so this finds a complete order whenever
-// one of these straight moves exists for each part in turn.
+// only when no remaining part can, along `extra_directions`, in their order. Taking a part out
+// never blocks another, so this finds a complete order whenever one of these straight moves
+// exists for each part in turn.
 // Part B is blocked by part A when a ray from one of B's assembly_samples() goes deeper than
 // tolerance_mm into A: a point of its way through A, taken every tolerance_mm / 2 as
-// `dhfcast check` does, lies farther than that from A's boundary. Contact on shared interfaces, and sliding along them, does not block.
+// `dhfcast check` does, lies farther than that from A's boundary. Contact on shared interfaces,
+// and sliding along them, does not block.
 // tolerance_mm >= 0, else Error{InvalidOptions}. Pre: parts have ids 0..n-1 in order and closed
 // meshes.
 AssemblyPlan plan_assembly(const std::vector<Part>& parts,

@@ -297,8 +297,8 @@ class Collisions {
   // Every part that part p leaving along dir runs into, ascending.
   std::vector<std::int32_t> blockers(std::int32_t p, const Vec3& dir) const {
     std::vector<std::atomic<bool>> hit(static_cast<std::size_t>(num_parts_));
-    for_each_obstacle(p, dir, [&](std::int32_t q) { hit[q].store(true, std::memory_order_relaxed); },
-                      nullptr);
+    for_each_obstacle(
+        p, dir, [&](std::int32_t q) { hit[q].store(true, std::memory_order_relaxed); }, nullptr);
     std::vector<std::int32_t> out;
     for (std::int32_t q = 0; q < num_parts_; ++q)
       if (hit[q].load()) out.push_back(q);
@@ -380,9 +380,11 @@ AssemblyPlan plan_assembly(const std::vector<Part>& parts,
   // +-d; only when there is none, along the extra directions. A move once blocked by a part
   // stays blocked while that part remains: each (part, direction) keeps the blocker it found. ---
   const std::size_t num_directions = 2 + extra_directions.size();
-  std::vector<std::vector<std::int32_t>> known_blocker(n, std::vector<std::int32_t>(num_directions, -1));
+  std::vector<std::vector<std::int32_t>> known_blocker(
+      n, std::vector<std::int32_t>(num_directions, -1));
   auto direction = [&](std::int32_t p, std::size_t k) {
-    return k < 2 ? (k == 0 ? parts[p].direction : Vec3(-parts[p].direction)) : extra_directions[k - 2];
+    return k < 2 ? (k == 0 ? parts[p].direction : Vec3(-parts[p].direction))
+                 : extra_directions[k - 2];
   };
   std::vector<bool> remaining(n, true);
   std::vector<std::int32_t> removed;

@@ -217,7 +217,8 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   // draws other points of the surface.
   d.assembly_tolerance_mm = 0.5 * opts.access.epsilon_mm;
   std::vector<Vec3> removal_directions;
-  for (const Part& p : d.parts) removal_directions.insert(removal_directions.end(), {p.direction, -p.direction});
+  for (const Part& p : d.parts)
+    removal_directions.insert(removal_directions.end(), {p.direction, -p.direction});
   for (const Vec3& v : fibonacci_directions(kAssemblyDirections)) removal_directions.push_back(v);
   d.assembly = plan_assembly(d.parts, removal_directions, d.assembly_tolerance_mm);
   report("parts", 1.0);
