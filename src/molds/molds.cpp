@@ -58,15 +58,24 @@ struct HeightGrid {
   int id(int i, int j) const { return j * (nx + 1) + i; }
   double x(int i) const { return x0 + i * s; }
   double y(int j) const { return y0 + j * s; }
-  // The piecewise-linear surface's height at (x, y), clamped to the grid.
-  double height(double px, double py) const {
+  // The grid triangle under (x, y), clamped to the grid: its nodes and the point's barycentric
+  // weights on them.
+  struct Spot {
+    std::array<int, 3> node{};
+    std::array<double, 3> weight{};
+  };
+  Spot spot(double px, double py) const {
     const double u = std::clamp((px - x0) / s, 0.0, double(nx)),
                  v = std::clamp((py - y0) / s, 0.0, double(ny));
     const int i = std::min(int(u), nx - 1), j = std::min(int(v), ny - 1);
     const double fu = u - i, fv = v - j;
-    const double a = h[id(i, j)], b = h[id(i + 1, j)], c = h[id(i + 1, j + 1)],
-                 e = h[id(i, j + 1)];
-    return fu >= fv ? a + fu * (b - a) + fv * (c - b) : a + fv * (e - a) + fu * (c - e);
+    if (fu >= fv) return {{id(i, j), id(i + 1, j), id(i + 1, j + 1)}, {1 - fu, fu - fv, fv}};
+    return {{id(i, j), id(i, j + 1), id(i + 1, j + 1)}, {1 - fv, fv - fu, fu}};
+  }
+  // The piecewise-linear surface's height at (x, y), clamped to the grid.
+  double height(double px, double py) const {
+    const Spot p = spot(px, py);
+    return p.weight[0] * h[p.node[0]] + p.weight[1] * h[p.node[1]] + p.weight[2] * h[p.node[2]];
   }
 };
 
@@ -283,9 +292,7 @@ void flatten_disc(HeightGrid& g, double xc, double yc, double radius, double hei
 // A point of the part's footprint where the surfaces bounding the up and the down half are
 // held: each surface's height there is the weighted sum of three grid nodes' heights, and must
 // be at least up_min (up half) and at most down_max (down half), heights along d in mm.
-struct FitPoint {
-  std::array<int, 3> node{};
-  std::array<double, 3> weight{};
+struct FitPoint : HeightGrid::Spot {
   double up_min = -INFINITY, down_max = INFINITY;
 };
 
@@ -333,24 +340,6 @@ std::optional<std::pair<double, double>> release_bounds(const std::vector<LineIn
   if (down_max < INFINITY && !holds(in.front())) down_max = INFINITY;
   if (up_min == -INFINITY && down_max == INFINITY) return std::nullopt;
   return std::pair{up_min, down_max};
-}
-
-// The grid triangle under local (x, y) and the point's barycentric weights on its nodes (the
-// split of HeightGrid::height()).
-FitPoint fit_point(const HeightGrid& g, double px, double py) {
-  const double u = std::clamp((px - g.x0) / g.s, 0.0, double(g.nx)),
-               v = std::clamp((py - g.y0) / g.s, 0.0, double(g.ny));
-  const int i = std::min(int(u), g.nx - 1), j = std::min(int(v), g.ny - 1);
-  const double fu = u - i, fv = v - j;
-  FitPoint p;
-  if (fu >= fv) {
-    p.node = {g.id(i, j), g.id(i + 1, j), g.id(i + 1, j + 1)};
-    p.weight = {1 - fu, fu - fv, fv};
-  } else {
-    p.node = {g.id(i, j), g.id(i, j + 1), g.id(i + 1, j + 1)};
-    p.weight = {1 - fv, fv - fu, fu};
-  }
-  return p;
 }
 
 // Raises the up half's surface and lowers the down half's (node heights, starting from the
@@ -637,7 +626,7 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
         surface_point ? robust_line_intervals(index, origin, d, hair) : node_lines[node];
     if (const auto bounds =
             release_bounds(in, g.height(at.x(), at.y()), index, origin, d, opts.epsilon_mm)) {
-      FitPoint p = fit_point(g, at.x(), at.y());
+      FitPoint p{g.spot(at.x(), at.y())};
       std::tie(p.up_min, p.down_max) = *bounds;
       candidates[k] = p;
     }
