@@ -394,11 +394,14 @@ AssemblyPlan plan_assembly(const std::vector<Part>& parts,
       for (std::int32_t p = 0; p < n && !progress; ++p) {
         if (!remaining[p]) continue;
         for (std::size_t k = own ? 0 : 2; k < (own ? 2 : num_directions); ++k) {
+          // The extra directions may repeat the part's own, just found blocked.
+          const Vec3 dir = direction(p, k);
+          if (k >= 2 && (dir == parts[p].direction || dir == -parts[p].direction)) continue;
           std::int32_t& known = known_blocker[p][k];
           if (known >= 0 && remaining[known]) continue;
-          known = collisions.blocker(p, direction(p, k), remaining);
+          known = collisions.blocker(p, dir, remaining);
           if (known >= 0) continue;
-          plan.removal[p] = direction(p, k);
+          plan.removal[p] = dir;
           remaining[p] = false;
           removed.push_back(p);
           progress = true;
