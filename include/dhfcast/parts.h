@@ -167,9 +167,13 @@ struct SolidCut {
   double push_mm = 0.0;              // how far the regions' outer surfaces were moved out
   std::vector<bool> part_cut;        // per part: cut from the solid (else left as a union of tets)
   std::vector<std::string> problem;  // per part: why it was not cut, "" when it was
-  // Outer triangles of the moved regions that still lie inside the solid (the input surface
-  // sticks out of the region there by more than push_mm); 0 when the parts cover the solid.
+  // Outer triangles of the moved regions whose pieces still lie inside the solid deeper than
+  // float noise (1e-7 of the diagonal): dents the parts leave; 0 when they cover the solid.
   std::int32_t uncovered_triangles = 0;
+  // Dents that a fold left (its corners could not move out far enough) and that were filled:
+  // the region grew over each by a convex hull reaching out past the input surface, less the
+  // other parts' regions.
+  std::int32_t filled_dents = 0;
   // Parts that were slivers outside the input surface (empty once cut): their tets went to the
   // neighbour they shared the most interface with (which need not be accessible along that
   // neighbour's direction: the cut leaves nothing of them), and the others were renumbered.
@@ -181,8 +185,8 @@ struct SolidCut {
 // which region): each part becomes solid ∩ region, by exact corefinement, where the region is the
 // part with its outer vertices moved out past the input surface along the input's normal
 // (twice as far as the input sticks out of the outer triangles around each, plus a margin; less
-// where moving that far would fold the region, which can leave
-// SolidCut::uncovered_triangles). Shared vertices move
+// where moving that far would fold the region: a dent that leaves is filled, see
+// SolidCut::filled_dents, or else counted in SolidCut::uncovered_triangles). Shared vertices move
 // alike in every part. Interfaces keep their triangles, cut where they meet the input surface;
 // neighbouring parts are cut by the same exact curve, so rounded to double they still share
 // their vertices and triangles. A part that intersects itself, or whose region CGAL rejects, is

@@ -6,13 +6,16 @@
 #include <CGAL/Exact_predicates_exact_constructions_kernel.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/corefinement.h>
+#include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/Surface_mesh.h>
+#include <CGAL/convex_hull_3.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <optional>
 #include <set>
 #include <string>
@@ -345,36 +348,63 @@ std::vector<std::int32_t> origins(const Region& r) {
   return origin;
 }
 
+// The region as an exact mesh whose faces carry their origin ("f:origin"); nullopt when it is
+// not a 2-manifold surface.
+std::optional<ExactMesh> exact_region(const TriMesh& region,
+                                      const std::vector<std::int32_t>& origin) {
+  std::optional<ExactMesh> m = to_exact(region);
+  if (!m) return std::nullopt;
+  auto o = m->add_property_map<Face, std::int32_t>("f:origin", kFromSolid).first;
+  for (Face f : m->faces()) o[f] = origin[f.idx()];
+  return m;
+}
+
+enum class Boolean { Intersection, Union, Difference };
+
+// a op b into `out`, whose faces keep the origins of the faces they come from; false when CGAL
+// rejects an operand (self-intersecting) or cannot build the result.
+bool boolean(Boolean op, ExactMesh& a, ExactMesh& b, ExactMesh& out) {
+  OriginVisitor visitor;
+  for (ExactMesh* m : {&a, &b, &out})
+    visitor.origin[m] = m->add_property_map<Face, std::int32_t>("f:origin", kFromSolid).first;
+  const auto np = CGAL::parameters::visitor(visitor).throw_on_self_intersection(true);
+  const auto checked = CGAL::parameters::throw_on_self_intersection(true);
+  bool built = false;
+  try {
+    switch (op) {
+      case Boolean::Intersection:
+        built = PMP::corefine_and_compute_intersection(a, b, out, np, checked);
+        break;
+      case Boolean::Union:
+        built = PMP::corefine_and_compute_union(a, b, out, np, checked);
+        break;
+      case Boolean::Difference:
+        built = PMP::corefine_and_compute_difference(a, b, out, np, checked);
+        break;
+    }
+  } catch (const PMP::Corefinement::Self_intersection_exception&) {
+  }
+  // Where the operands touch at a point the result can pinch there, which a Surface_mesh holds
+  // only as a broken structure (and CGAL then crashes on it).
+  return built && CGAL::is_valid_polygon_mesh(out);
+}
+
 // solid ∩ region, with the origins of the result's faces; nullopt when CGAL rejects an operand
 // (a region that intersects or touches itself).
-std::optional<std::pair<TriMesh, std::vector<std::int32_t>>> intersect(
-    const TriMesh& solid, const TriMesh& region, const std::vector<std::int32_t>& region_origin,
-    std::string& problem) {
-  std::optional<ExactMesh> a = to_exact(solid), b = to_exact(region);
-  if (!a || !b) {
-    problem = "its region is not a 2-manifold surface";
+std::optional<std::pair<TriMesh, std::vector<std::int32_t>>> intersect(const TriMesh& solid,
+                                                                       ExactMesh region,
+                                                                       std::string& problem) {
+  std::optional<ExactMesh> a = to_exact(solid);
+  if (!a) {
+    problem = "the input solid is not a 2-manifold surface";
     return std::nullopt;
   }
   ExactMesh out;
-  OriginVisitor visitor;
-  visitor.origin[&*a] = a->add_property_map<Face, std::int32_t>("f:origin", kFromSolid).first;
-  auto b_origin = b->add_property_map<Face, std::int32_t>("f:origin", kFromSolid).first;
-  for (Face f : b->faces()) b_origin[f] = region_origin[f.idx()];
-  visitor.origin[&*b] = b_origin;
-  auto out_origin = out.add_property_map<Face, std::int32_t>("f:origin", kFromSolid).first;
-  visitor.origin[&out] = out_origin;
-  try {
-    const auto checked = CGAL::parameters::throw_on_self_intersection(true);
-    if (!PMP::corefine_and_compute_intersection(
-            *a, *b, out, CGAL::parameters::visitor(visitor).throw_on_self_intersection(true),
-            checked)) {
-      problem = "the exact intersection with the input solid failed";
-      return std::nullopt;
-    }
-  } catch (const PMP::Corefinement::Self_intersection_exception&) {
+  if (!boolean(Boolean::Intersection, *a, region, out)) {
     problem = "its region, moved out past the input surface, intersects itself";
     return std::nullopt;
   }
+  auto out_origin = out.add_property_map<Face, std::int32_t>("f:origin", kFromSolid).first;
   // Points the cut put within a float step of each other become one, and the needle triangles
   // between them go (in a neighbour too, which rounds the same points).
   TriMesh mesh;
@@ -397,6 +427,155 @@ std::optional<std::pair<TriMesh, std::vector<std::int32_t>>> intersect(
     origin.push_back(out_origin[f]);
   }
   return std::make_pair(std::move(mesh), std::move(origin));
+}
+
+using CutResult = std::pair<TriMesh, std::vector<std::int32_t>>;
+
+// Which cut part holds a point: a part's point-in-solid test is built the first time it is asked.
+class PartCover {
+ public:
+  explicit PartCover(const std::vector<std::optional<CutResult>>& results)
+      : results_(results), side_(results.size()) {}
+  // The part other than `self` that holds p inside, or -1.
+  std::int32_t covering(std::size_t self, const Vec3& p) {
+    for (std::size_t j = 0; j < results_.size(); ++j) {
+      if (j == self || !results_[j] || results_[j]->first.triangles.empty()) continue;
+      if (!side_[j]) {
+        const TriMesh& m = results_[j]->first;
+        side_[j] = std::make_unique<Side>();
+        for (const Vec3& v : m.vertices) side_[j]->mesh.add_vertex(point(v));
+        for (const Tri& t : m.triangles)
+          side_[j]->mesh.add_face(InexactMesh::Vertex_index(t[0]), InexactMesh::Vertex_index(t[1]),
+                                  InexactMesh::Vertex_index(t[2]));
+        side_[j]->inside = std::make_unique<Inside>(side_[j]->mesh);
+      }
+      if ((*side_[j]->inside)(point(p)) == CGAL::ON_BOUNDED_SIDE)
+        return static_cast<std::int32_t>(j);
+    }
+    return -1;
+  }
+  // Part j was cut again.
+  void changed(std::size_t j) { side_[j].reset(); }
+
+ private:
+  using InexactMesh = CGAL::Surface_mesh<K::Point_3>;
+  using Inside = CGAL::Side_of_triangle_mesh<InexactMesh, K>;
+  struct Side {
+    InexactMesh mesh;
+    std::unique_ptr<Inside> inside;
+  };
+  const std::vector<std::optional<CutResult>>& results_;
+  std::vector<std::unique_ptr<Side>> side_;
+};
+
+// The region's outer triangles whose pieces in the cut part lie deeper than `depth` inside the
+// solid with no other part in front of them, in patches that share corners, each with how deep
+// it goes. A piece that another part covers (it filled a dent there) becomes an interface with
+// it. `hair`: how far in front of a piece the cover is looked for.
+std::vector<std::pair<std::vector<std::int32_t>, double>> dents(std::size_t i, CutResult& cut,
+                                                                const Region& region,
+                                                                const Tree& surface, double depth,
+                                                                double hair, PartCover& cover) {
+  auto& [mesh, origin] = cut;
+  std::map<std::int32_t, double> deep;  // region triangle -> depth
+  for (std::size_t f = 0; f < origin.size(); ++f) {
+    if (origin[f] >= kFromSolid) continue;
+    const Tri& t = mesh.triangles[f];
+    const Vec3 centre = (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]) / 3.0;
+    double d = 0.0;
+    for (const Vec3& p : {mesh.vertices[t[0]], mesh.vertices[t[1]], mesh.vertices[t[2]], centre})
+      d = std::max(d, std::sqrt(surface.squared_distance(point(p))));
+    if (d <= depth) continue;
+    const Vec3 normal = (mesh.vertices[t[1]] - mesh.vertices[t[0]])
+                            .cross(mesh.vertices[t[2]] - mesh.vertices[t[0]])
+                            .normalized();
+    if (const std::int32_t j = cover.covering(i, centre + std::min(hair, 0.5 * d) * normal);
+        j >= 0) {
+      origin[f] = j;
+    } else {
+      double& slot = deep[kFromSolid - 1 - origin[f]];
+      slot = std::max(slot, d);
+    }
+  }
+  // Patches: triangles joined through shared corners (union-find on the corners).
+  std::vector<std::int32_t> parent(region.mesh.vertices.size());
+  for (std::size_t v = 0; v < parent.size(); ++v) parent[v] = static_cast<std::int32_t>(v);
+  auto find = [&](std::int32_t v) {
+    while (parent[v] != v) v = parent[v] = parent[parent[v]];
+    return v;
+  };
+  for (const auto& [t, d] : deep)
+    for (std::int32_t v : region.mesh.triangles[t])
+      parent[find(v)] = find(region.mesh.triangles[t][0]);
+  std::map<std::int32_t, std::pair<std::vector<std::int32_t>, double>> patch;
+  for (const auto& [t, d] : deep) {
+    auto& [triangles, patch_depth] = patch[find(region.mesh.triangles[t][0])];
+    triangles.push_back(t);
+    patch_depth = std::max(patch_depth, d);
+  }
+  std::vector<std::pair<std::vector<std::int32_t>, double>> out;
+  for (auto& [root, p] : patch) out.push_back(std::move(p));
+  return out;
+}
+
+// The region grown over its dents: the convex hull of each patch's corners and of the same
+// corners moved `reach` further out along `dirs`, less the other parts' regions, joined to the
+// region. Faces of a hull keep the origin of an outer face of the patch, so a hull that
+// still does not reach the input surface counts as uncovered. nullopt when a boolean fails.
+std::optional<ExactMesh> fill_dents(
+    std::size_t i, const std::vector<Region>& regions, const std::vector<char>& usable,
+    const std::vector<std::pair<std::vector<std::int32_t>, double>>& patches, const PointMap& dirs,
+    double reach_factor, double margin) {
+  const Region& r = regions[i];
+  std::optional<ExactMesh> grown = exact_region(r.mesh, origins(r));
+  if (!grown) return std::nullopt;
+  for (const auto& [triangles, depth] : patches) {
+    const double reach = reach_factor * depth + margin;
+    // The hull starts a margin inside the region, so that the two cross instead of touching.
+    std::vector<Vec3> points;
+    for (std::int32_t t : triangles) {
+      const Tri& tri = r.mesh.triangles[t];
+      const Vec3 normal = (r.mesh.vertices[tri[1]] - r.mesh.vertices[tri[0]])
+                              .cross(r.mesh.vertices[tri[2]] - r.mesh.vertices[tri[0]])
+                              .normalized();
+      for (std::int32_t v : tri) {
+        const auto d = dirs.find(r.source[v]);
+        const Vec3 out = d == dirs.end() ? normal : d->second;
+        points.push_back(r.mesh.vertices[v] - margin * out);
+        points.push_back(r.mesh.vertices[v] + reach * out);
+      }
+    }
+    std::vector<EK::Point_3> corners;
+    for (const Vec3& p : points) corners.emplace_back(p.x(), p.y(), p.z());
+    const Box3 box = bounding_box(points);
+    ExactMesh hull;
+    CGAL::convex_hull_3(corners.begin(), corners.end(), hull);
+    if (!CGAL::is_closed(hull) || hull.number_of_faces() < 4) continue;  // flat: no volume
+    auto hull_origin = hull.add_property_map<Face, std::int32_t>("f:origin").first;
+    for (Face f : hull.faces()) hull_origin[f] = kFromSolid - 1 - triangles.front();
+    for (std::size_t j = 0; j < regions.size(); ++j) {
+      const Box3 other_box = bounding_box(regions[j].mesh.vertices);
+      if (j == i || !usable[j] || (box.max.array() < other_box.min.array()).any() ||
+          (other_box.max.array() < box.min.array()).any())
+        continue;
+      std::optional<ExactMesh> other =
+          exact_region(regions[j].mesh, std::vector<std::int32_t>(regions[j].mesh.triangles.size(),
+                                                                  static_cast<std::int32_t>(j)));
+      ExactMesh rest;
+      if (!other || !boolean(Boolean::Difference, hull, *other, rest)) {
+        fprintf(stderr, "DBG diff failed %zu %zu\n", i, j);
+        return std::nullopt;
+      }
+      hull = std::move(rest);
+    }
+    ExactMesh joined;
+    if (!boolean(Boolean::Union, *grown, hull, joined)) {
+      fprintf(stderr, "DBG union failed %zu\n", i);
+      return std::nullopt;
+    }
+    grown = std::move(joined);
+  }
+  return grown;
 }
 
 }  // namespace
@@ -439,6 +618,9 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   // Where a moved outer side still lies inside the solid, its corners that never folded move
   // twice as far, and all is done again.
   constexpr int kGrowths = 3;
+  // Dents shallower than this share of the diagonal are float noise of the moved faces.
+  constexpr double kDentDepth = 1e-7;
+  constexpr int kDentFills = 3;
   for (int pass = 0;; ++pass) {
     for (int round = 0;; ++round) {
       std::vector<std::set<Vec3, VecLess>> folded(n);
@@ -474,8 +656,10 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
                          " and " + std::to_string(own[i][0][1]) + ")";
       else if (folds[i])
         cut.problem[i] = "its outer surface folds where it is moved out past the input surface";
+      else if (std::optional<ExactMesh> region = exact_region(regions[i].mesh, origins(regions[i])))
+        results[i] = intersect(solid, std::move(*region), cut.problem[i]);
       else
-        results[i] = intersect(solid, regions[i].mesh, origins(regions[i]), cut.problem[i]);
+        cut.problem[i] = "its region is not a 2-manifold surface";
     });
     std::set<Vec3, VecLess> grow;
     for (std::size_t i = 0; i < n; ++i)
@@ -491,6 +675,48 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   double largest = 0.0;
   for (const auto& [p, d] : push) largest = std::max(largest, d);
   cut.push_mm = largest;
+
+  // Dents left where a fold kept the corners from moving far enough: each region grows over its
+  // own, by convex hulls reaching further out each time, until its part covers the solid there.
+  {
+    Triangles triangles;
+    for (const Tri& t : solid.triangles)
+      triangles.emplace_back(point(solid.vertices[t[0]]), point(solid.vertices[t[1]]),
+                             point(solid.vertices[t[2]]));
+    Tree surface(triangles.begin(), triangles.end());
+    surface.accelerate_distance_queries();
+    const double depth = kDentDepth * diagonal;
+    std::vector<char> usable(n);
+    for (std::size_t i = 0; i < n; ++i) usable[i] = own[i].empty() && !folds[i];
+    PartCover cover(results);
+    const double hair_in_front = 1e-6 * diagonal;
+    auto dents_of = [&](std::size_t i) {
+      return dents(i, *results[i], regions[i], surface, depth, hair_in_front, cover);
+    };
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!results[i]) continue;
+      const auto patches = dents_of(i);
+      for (int attempt = 0; attempt < kDentFills && !patches.empty(); ++attempt) {
+        std::optional<ExactMesh> grown =
+            fill_dents(i, regions, usable, patches, dirs, 4.0 * (1 << attempt), margin);
+        std::string problem;
+        if (!grown) break;
+        auto filled = intersect(solid, std::move(*grown), problem);
+        if (!filled) break;
+        results[i] = std::move(filled);
+        cover.changed(i);
+        if (dents_of(i).empty()) {
+          cut.filled_dents += static_cast<std::int32_t>(patches.size());
+          break;
+        }
+      }
+    }
+    // Counted once all are filled: a later part's fill can cover an earlier part's dent.
+    for (std::size_t i = 0; i < n; ++i)
+      if (results[i])
+        for (const auto& [triangles, d] : dents_of(i))
+          cut.uncovered_triangles += static_cast<std::int32_t>(triangles.size());
+  }
 
   // A sliver part can lie wholly between the tet mesh's boundary and the input surface: cut, it
   // is empty. Its tets go to the neighbour it shares the most interface with.
@@ -543,10 +769,8 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
       auto& [mesh, origin] = *results[i];
       part.mesh = std::move(mesh);
       part.triangle_neighbor.assign(origin.size(), -1);
-      for (std::size_t t = 0; t < origin.size(); ++t) {
+      for (std::size_t t = 0; t < origin.size(); ++t)
         if (origin[t] >= 0) part.triangle_neighbor[t] = origin[t];
-        if (origin[t] < kFromSolid) ++kept_cut.uncovered_triangles;
-      }
       part.volume_mm3 = signed_volume(part.mesh);
     }
     // Faces towards a dropped part lay outside the solid with it, so none are left.

@@ -184,6 +184,7 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
   if (opts.exact_outer_surface)
     j["outer_surface_cut"] = {{"push_mm", d.solid_cut.push_mm},
                               {"uncovered_triangles", d.solid_cut.uncovered_triangles},
+                              {"filled_dents", d.solid_cut.filled_dents},
                               {"dropped_parts", d.solid_cut.dropped_parts}};
 
   // Normal angles between neighbouring interface triangles, before and after smoothing.
