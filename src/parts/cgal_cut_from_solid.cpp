@@ -562,17 +562,11 @@ std::optional<ExactMesh> fill_dents(
           exact_region(regions[j].mesh, std::vector<std::int32_t>(regions[j].mesh.triangles.size(),
                                                                   static_cast<std::int32_t>(j)));
       ExactMesh rest;
-      if (!other || !boolean(Boolean::Difference, hull, *other, rest)) {
-        fprintf(stderr, "DBG diff failed %zu %zu\n", i, j);
-        return std::nullopt;
-      }
+      if (!other || !boolean(Boolean::Difference, hull, *other, rest)) return std::nullopt;
       hull = std::move(rest);
     }
     ExactMesh joined;
-    if (!boolean(Boolean::Union, *grown, hull, joined)) {
-      fprintf(stderr, "DBG union failed %zu\n", i);
-      return std::nullopt;
-    }
+    if (!boolean(Boolean::Union, *grown, hull, joined)) return std::nullopt;
     grown = std::move(joined);
   }
   return grown;
@@ -699,8 +693,8 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
       for (int attempt = 0; attempt < kDentFills && !patches.empty(); ++attempt) {
         std::optional<ExactMesh> grown =
             fill_dents(i, regions, usable, patches, dirs, 4.0 * (1 << attempt), margin);
-        std::string problem;
         if (!grown) break;
+        std::string problem;
         auto filled = intersect(solid, std::move(*grown), problem);
         if (!filled) break;
         results[i] = std::move(filled);

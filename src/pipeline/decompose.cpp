@@ -214,13 +214,17 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   // A part leaves along its own +-d when it can, else along another part's (interfaces follow
   // them) or one of a coarse set of directions over the sphere. A move counts as blocked when it
   // goes deeper than epsilon / 2 into another part: half what `dhfcast check` allows, as check
-  // draws other points of the surface.
-  d.assembly_tolerance_mm = 0.5 * opts.access.epsilon_mm;
+  // draws other points of the surface. When no order exists with that margin, the margin
+  // shrinks: an order closer to check's limit is still one that check can confirm.
   std::vector<Vec3> removal_directions;
   for (const Part& p : d.parts)
     removal_directions.insert(removal_directions.end(), {p.direction, -p.direction});
   for (const Vec3& v : fibonacci_directions(kAssemblyDirections)) removal_directions.push_back(v);
-  d.assembly = plan_assembly(d.parts, removal_directions, d.assembly_tolerance_mm);
+  for (double share : {0.5, 0.75, 0.95}) {
+    d.assembly_tolerance_mm = share * opts.access.epsilon_mm;
+    d.assembly = plan_assembly(d.parts, removal_directions, d.assembly_tolerance_mm);
+    if (d.assembly.found) break;
+  }
   report("parts", 1.0);
   d.timings.parts = seconds_since(t0);
 
