@@ -138,9 +138,14 @@ int run_decompose(const CliOptions& cli) {
   if (!cli.quiet) {
     std::fprintf(stderr, "dhfcast: %zu parts from %zu tets, written to %s\n", d.parts.size(),
                  d.tets.tets.size(), cli.outdir.c_str());
-    for (const Part& p : d.parts)
-      std::fprintf(stderr, "  part %3d  direction (%+.3f, %+.3f, %+.3f)  %10.1f mm3\n", p.id,
-                   p.direction.x(), p.direction.y(), p.direction.z(), p.volume_mm3);
+    for (const Part& p : d.parts) {
+      const Vec3& r = d.assembly.removal.at(p.id);
+      std::fprintf(stderr,
+                   "  part %3d  direction (%+.3f, %+.3f, %+.3f)  leaves along (%+.3f, %+.3f, "
+                   "%+.3f)  %10.1f mm3\n",
+                   p.id, p.direction.x(), p.direction.y(), p.direction.z(), r.x(), r.y(), r.z(),
+                   p.volume_mm3);
+    }
     std::string order;
     for (std::int32_t id : d.assembly.order) order += " " + std::to_string(id);
     std::fprintf(stderr, "  assembly order:%s%s\n", order.c_str(),

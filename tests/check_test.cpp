@@ -289,6 +289,15 @@ TEST(Check, AssemblyOrderThroughAnEarlierPartFails) {
   const CheckReport none = run(write_folder("no-order", box(kLo, kHi), parts, {0, 1}));
   expect_failures(none, {"assembly"});
   EXPECT_EQ(figure(item(none, "assembly"), "order_exists"), 0.0);
+
+  // The same parts, the top one going in from above as its removal_direction says: it passes.
+  const CheckReport removal =
+      run(write_folder("removal", box(kLo, kHi), parts, {0, 1}, [](nlohmann::json& j) {
+        j["parts"][1]["removal_direction"] = {0, 0, 1};
+      }));
+  SCOPED_TRACE(format_text(removal));
+  EXPECT_TRUE(item(removal, "assembly").passed);
+  EXPECT_EQ(figure(item(removal, "assembly"), "order_exists"), 1.0);
 }
 
 TEST(Check, SideBySidePartsSlideAlongTheirInterface) {
@@ -483,6 +492,9 @@ TEST(Check, ContractViolationsAreFoundAndStopTheGeometricChecksWhenNeeded) {
   EXPECT_FALSE(contract_of("ver", [](nlohmann::json& j) { j["version"] = 2; }).passed);
   EXPECT_FALSE(contract_of("dir", [](nlohmann::json& j) {
                  j["parts"][1]["direction"] = {0, 0, 2};
+               }).passed);
+  EXPECT_FALSE(contract_of("removal", [](nlohmann::json& j) {
+                 j["parts"][1]["removal_direction"] = {0, 0.5, 0};
                }).passed);
   EXPECT_FALSE(contract_of("ids", [](nlohmann::json& j) { j["parts"][1]["id"] = 5; }).passed);
   EXPECT_FALSE(

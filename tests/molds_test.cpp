@@ -234,6 +234,22 @@ TEST(Molds, EveryAirTrapGetsAVent) {
   EXPECT_TRUE(automatic.vents.empty());
 }
 
+// A slab with a lip over a 0.3 mm slit: lines through the slit meet the part twice, a double
+// height field only up to epsilon. A half holding the slit could not be pulled past the lip
+// (the parting surface used to cut a tongue into it); the slit is left to the cast instead.
+// The lip also ends between the parting surface's nodes.
+TEST(Molds, ToleratedSlitUnderALipIsLeftToTheCast) {
+  const std::vector<double> xs = {0, 28, 32, 60}, ys = {-2, 0, 3, 60}, zs = {0, 10, 10.3, 12};
+  const TriMesh slab = test::grid_surface(xs, ys, zs, [](int i, int j, int k) {
+    return k == 0 || (i == 1 && j == 0) || (i == 1 && j == 1 && k == 2);
+  });
+  const Part part = part_of(slab, Vec3::UnitZ());
+  const Mold mold = build_mold(part, {});
+  expect_valid_mold(mold, part.direction);
+  const CheckItem item = checked_molds(part, mold);
+  EXPECT_TRUE(item.passed) << item.summary;
+}
+
 TEST(Molds, SameMoldOnAnyThreadCount) {
   const std::vector<Part> parts = {
       part_of(make_sphere(Vec3(0, 0, 0), 12, 12, 24), Vec3(0.3, 0.4, 1.0)),
@@ -255,11 +271,12 @@ TEST(Molds, SameMoldOnAnyThreadCount) {
 // The extended suite: a shared model decomposed at the default settings, its molds written
 // and read back by the checker. Wrench is one part along a tilted direction (its block stood on
 // an edge before the halves were laid flat; PrusaSlicer found nothing in the first layer);
-// fandisk's booleans left chips of the block loose in its cavities.
+// fandisk's booleans left chips of the block loose in its cavities, and its halves did not
+// release where the parting surface left a thin part between grid nodes or a half held a
+// tolerated undercut (issue #5).
 struct ModelCase {
   std::string name;
-  bool releases;  // the molds check passes (fandisk's parts are double height fields only up to
-                  // the dhf check's tolerance: a sandwiched line cannot release)
+  bool releases;  // the molds check passes
 };
 
 class ModelMolds : public ::testing::TestWithParam<ModelCase> {};
@@ -292,7 +309,7 @@ TEST_P(ModelMolds, HalvesLieFlatOnTheBedAndMapBackAroundTheirParts) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Extended, ModelMolds,
-                         ::testing::Values(ModelCase{"wrench", true}, ModelCase{"fandisk", false}),
+                         ::testing::Values(ModelCase{"wrench", true}, ModelCase{"fandisk", true}),
                          [](const auto& info) { return info.param.name; });
 
 TEST(Molds, BadOptionsAreNamed) {

@@ -696,11 +696,18 @@ std::vector<Part> flipped(std::vector<Part> parts) {
   return parts;
 }
 
+// Which parts leave along -d rather than +d.
+std::vector<bool> reversed_parts(const AssemblyPlan& plan, const std::vector<Part>& parts) {
+  std::vector<bool> out;
+  for (const Part& p : parts) out.push_back(plan.removal.at(p.id) == -p.direction);
+  return out;
+}
+
 // The plan agrees with the blocking both ways (forward along +d, backward along -d): disassembly
 // takes out the smallest-id part that no remaining part blocks along +d, else along -d; blocks
 // holds the list along the way each part leaves; order is the disassembly reversed, then the
 // parts left blocked by ascending id.
-void expect_plan_follows(const AssemblyPlan& plan,
+void expect_plan_follows(const AssemblyPlan& plan, const std::vector<Part>& parts,
                          const std::vector<std::vector<std::int32_t>>& forward,
                          const std::vector<std::vector<std::int32_t>>& backward) {
   const std::size_t n = forward.size();
@@ -726,7 +733,7 @@ void expect_plan_follows(const AssemblyPlan& plan,
   std::vector<std::vector<std::int32_t>> blocks;
   for (std::size_t p = 0; p < n; ++p) blocks.push_back(reversed[p] ? backward[p] : forward[p]);
   EXPECT_EQ(plan.found, removed.size() == n);
-  EXPECT_EQ(plan.reversed, reversed);
+  EXPECT_EQ(reversed_parts(plan, parts), reversed);
   EXPECT_EQ(plan.blocks, blocks);
   EXPECT_EQ(plan.order, order);
 }
@@ -748,7 +755,7 @@ void expect_collision_free(const AssemblyPlan& plan, std::size_t num_parts) {
 using Blocks = std::vector<std::vector<std::int32_t>>;
 using Flags = std::vector<bool>;
 
-constexpr double kTolerance_mm = 0.01;
+constexpr double kTolerance_mm = 0.5;  // depth; the cells are 2.5 to 10 mm
 
 TEST(PlanAssembly, BlockedBottomOfAStackLeavesDownwards) {
   // Both leave up: the top is in the bottom's way, so the bottom (part 0, smallest id) leaves
@@ -757,9 +764,9 @@ TEST(PlanAssembly, BlockedBottomOfAStackLeavesDownwards) {
   const auto parts = grid_parts(g, [](const Cell& c) { return c[2]; }, {kZ, kZ});
   ASSERT_EQ(parts.size(), 2u);
   ASSERT_EQ(parts[0].direction_index, 0);  // the bottom holds tet 0
-  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  const AssemblyPlan plan = plan_assembly(parts, {}, kTolerance_mm);
   EXPECT_TRUE(plan.found);
-  EXPECT_EQ(plan.reversed, (Flags{true, false}));
+  EXPECT_EQ(reversed_parts(plan, parts), (Flags{true, false}));
   EXPECT_EQ(plan.blocks, (Blocks{{}, {}}));
   EXPECT_EQ(plan.order, (std::vector<std::int32_t>{1, 0}));
   EXPECT_TRUE(plan.message.empty());
@@ -769,9 +776,9 @@ TEST(PlanAssembly, PartsLeavingAwayFromEachOtherAreFree) {
   // Bottom leaves down, top leaves up: nothing blocks; disassembly takes part 0 first.
   const Grid g = make_grid(2, 2, 2, 10.0);
   const auto parts = grid_parts(g, [](const Cell& c) { return c[2]; }, {-kZ, kZ});
-  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  const AssemblyPlan plan = plan_assembly(parts, {}, kTolerance_mm);
   EXPECT_TRUE(plan.found);
-  EXPECT_EQ(plan.reversed, (Flags{false, false}));
+  EXPECT_EQ(reversed_parts(plan, parts), (Flags{false, false}));
   EXPECT_EQ(plan.blocks, (Blocks{{}, {}}));
   EXPECT_EQ(plan.order, (std::vector<std::int32_t>{1, 0}));
 }
@@ -781,9 +788,9 @@ TEST(PlanAssembly, PartsLeavingTowardsEachOtherLeaveOneWayReversed) {
   // top is free to leave down through the room the bottom left.
   const Grid g = make_grid(2, 2, 2, 10.0);
   const auto parts = grid_parts(g, [](const Cell& c) { return c[2]; }, {kZ, -kZ});
-  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  const AssemblyPlan plan = plan_assembly(parts, {}, kTolerance_mm);
   EXPECT_TRUE(plan.found);
-  EXPECT_EQ(plan.reversed, (Flags{true, false}));
+  EXPECT_EQ(reversed_parts(plan, parts), (Flags{true, false}));
   EXPECT_EQ(plan.blocks, (Blocks{{}, {0}}));
   EXPECT_EQ(plan.order, (std::vector<std::int32_t>{1, 0}));
   EXPECT_TRUE(plan.message.empty());
@@ -792,9 +799,9 @@ TEST(PlanAssembly, PartsLeavingTowardsEachOtherLeaveOneWayReversed) {
 TEST(PlanAssembly, PartsSlidingAlongTheirInterfaceDoNotBlock) {
   const Grid g = make_grid(2, 2, 2, 10.0);
   const auto parts = grid_parts(g, [](const Cell& c) { return c[0]; }, {kZ, kZ});
-  const AssemblyPlan plan = plan_assembly(g.mesh, parts, 0.0);
+  const AssemblyPlan plan = plan_assembly(parts, {}, 0.0);
   EXPECT_TRUE(plan.found);
-  EXPECT_EQ(plan.reversed, (Flags{false, false}));
+  EXPECT_EQ(reversed_parts(plan, parts), (Flags{false, false}));
   EXPECT_EQ(plan.blocks, (Blocks{{}, {}}));
   EXPECT_EQ(plan.order, (std::vector<std::int32_t>{1, 0}));
 }
@@ -808,9 +815,9 @@ TEST(PlanAssembly, LeavingObliquelyIntoANeighbourIsBlocked) {
       grid_parts(g, [](const Cell& c) { return c[0] == 0 ? 0 : 1; }, {Vec3(0.3, 0, 1), kZ});
   ASSERT_EQ(parts.size(), 2u);
   ASSERT_EQ(parts[0].direction, kZ);
-  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  const AssemblyPlan plan = plan_assembly(parts, {}, kTolerance_mm);
   EXPECT_TRUE(plan.found);
-  EXPECT_EQ(plan.reversed, (Flags{false, false}));
+  EXPECT_EQ(reversed_parts(plan, parts), (Flags{false, false}));
   EXPECT_EQ(plan.blocks, (Blocks{{}, {0}}));
   EXPECT_EQ(plan.order, (std::vector<std::int32_t>{1, 0}));
 }
@@ -833,9 +840,9 @@ TEST(PlanAssembly, InterlockingLsComeApartWhenOneLeavesBackwards) {
   ASSERT_EQ(parts.size(), 3u);
   ASSERT_EQ(parts[0].direction, kX);
   ASSERT_EQ(parts[1].direction, kZ);
-  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  const AssemblyPlan plan = plan_assembly(parts, {}, kTolerance_mm);
   EXPECT_TRUE(plan.found);
-  EXPECT_EQ(plan.reversed, (Flags{true, false, false}));
+  EXPECT_EQ(reversed_parts(plan, parts), (Flags{true, false, false}));
   EXPECT_EQ(plan.blocks, (Blocks{{}, {0}, {}}));
   EXPECT_EQ(plan.order, (std::vector<std::int32_t>{2, 1, 0}));
   EXPECT_TRUE(plan.message.empty());
@@ -858,9 +865,9 @@ TEST(PlanAssembly, EnclosedCubeReportsACycleAndTheRestIsOrdered) {
   ASSERT_EQ(parts[0].direction, kX);
   ASSERT_EQ(parts[1].direction_index, 2);
   ASSERT_EQ(parts[2].direction_index, 0);
-  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  const AssemblyPlan plan = plan_assembly(parts, {}, kTolerance_mm);
   EXPECT_FALSE(plan.found);
-  EXPECT_EQ(plan.reversed, (Flags{false, false, false}));
+  EXPECT_EQ(reversed_parts(plan, parts), (Flags{false, false, false}));
   // B along +x runs into A and C.
   EXPECT_EQ(plan.blocks, (Blocks{{1, 2}, {}, {0}}));
   EXPECT_EQ(plan.order, (std::vector<std::int32_t>{1, 0, 2}));
@@ -885,9 +892,9 @@ TEST(PlanAssembly, ThreePartCycleIsNamed) {
   ASSERT_EQ(parts.size(), 3u);
   ASSERT_EQ(parts[0].direction_index, 0);
   ASSERT_EQ(parts[1].direction_index, 1);
-  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  const AssemblyPlan plan = plan_assembly(parts, {}, kTolerance_mm);
   EXPECT_FALSE(plan.found);
-  EXPECT_EQ(plan.reversed, (Flags{false, false, false}));
+  EXPECT_EQ(reversed_parts(plan, parts), (Flags{false, false, false}));
   EXPECT_EQ(plan.blocks, (Blocks{{1, 2}, {2}, {0}}));
   EXPECT_EQ(plan.order, (std::vector<std::int32_t>{0, 1, 2}));
   EXPECT_EQ(plan.message,
@@ -900,9 +907,9 @@ TEST(PlanAssembly, ColumnWithOpposedDirectionsComesApartReversed) {
   // former place), then the top.
   const Grid g = make_grid(1, 1, 3, 10.0);
   const auto parts = grid_parts(g, [](const Cell& c) { return c[2]; }, {kZ, kZ, -kZ});
-  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  const AssemblyPlan plan = plan_assembly(parts, {}, kTolerance_mm);
   EXPECT_TRUE(plan.found);
-  EXPECT_EQ(plan.reversed, (Flags{true, true, false}));
+  EXPECT_EQ(reversed_parts(plan, parts), (Flags{true, true, false}));
   EXPECT_EQ(plan.blocks, (Blocks{{}, {0}, {0, 1}}));
   EXPECT_EQ(plan.order, (std::vector<std::int32_t>{2, 1, 0}));
   expect_collision_free(plan, parts.size());
@@ -916,18 +923,18 @@ TEST(PlanAssembly, BlockingMatchesCellRowsOnScrambledParts) {
       grid_parts(g, [&](const Cell& c) { return cell_label[(c[2] * 5 + c[1]) * 6 + c[0]]; },
                  {kZ, -kX, kY, -kZ});
   ASSERT_GT(parts.size(), 5u);
-  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
-  expect_plan_follows(plan, blocks_by_cells(g, parts), blocks_by_cells(g, flipped(parts)));
-  EXPECT_GT(std::count(plan.reversed.begin(), plan.reversed.end(), true), 0);
+  const AssemblyPlan plan = plan_assembly(parts, {}, kTolerance_mm);
+  expect_plan_follows(plan, parts, blocks_by_cells(g, parts), blocks_by_cells(g, flipped(parts)));
+  EXPECT_GT(std::ranges::count(reversed_parts(plan, parts), true), 0);
   if (plan.found) {
     expect_collision_free(plan, parts.size());
   } else {
     EXPECT_NE(plan.message.find("no assembly order: part "), std::string::npos);
   }
   tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
-  const AssemblyPlan again = plan_assembly(g.mesh, parts, kTolerance_mm);
+  const AssemblyPlan again = plan_assembly(parts, {}, kTolerance_mm);
   EXPECT_EQ(again.blocks, plan.blocks);
-  EXPECT_EQ(again.reversed, plan.reversed);
+  EXPECT_EQ(again.removal, plan.removal);
   EXPECT_EQ(again.order, plan.order);
 }
 
@@ -937,25 +944,51 @@ TEST(PlanAssembly, AxisAlignedLayersHaveAnOrder) {
   // down once layer 0 is out.
   const Grid g = make_grid(3, 3, 4, 5.0);
   const auto parts = grid_parts(g, [](const Cell& c) { return c[2]; }, {-kZ, kZ, kX, kZ});
-  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
+  const AssemblyPlan plan = plan_assembly(parts, {}, kTolerance_mm);
   EXPECT_TRUE(plan.found);
-  expect_plan_follows(plan, blocks_by_cells(g, parts), blocks_by_cells(g, flipped(parts)));
-  EXPECT_EQ(plan.reversed, (Flags{false, true, false, false}));
+  expect_plan_follows(plan, parts, blocks_by_cells(g, parts), blocks_by_cells(g, flipped(parts)));
+  EXPECT_EQ(reversed_parts(plan, parts), (Flags{false, true, false, false}));
   EXPECT_EQ(plan.order, (std::vector<std::int32_t>{3, 2, 1, 0}));
+  expect_collision_free(plan, parts.size());
+}
+
+TEST(PlanAssembly, AClampedPartComesOffSidewaysAlongAnExtraDirection) {
+  // In the x-z plane (z up):   B B B
+  //                            A A B
+  //                            B B B
+  // Both leave along z, and each blocks the other both ways; along +x B slides off A's end.
+  // Parts: B (the larger) = 0, A = 1.
+  const Grid g = make_grid(3, 1, 3, 10.0);
+  const auto parts = grid_parts(
+      g, [](const Cell& c) { return c[2] == 1 && c[0] <= 1 ? 1 : 0; }, {kZ, kZ});
+  ASSERT_EQ(parts.size(), 2u);
+  ASSERT_EQ(2 * parts[0].tets.size(), 7 * parts[1].tets.size());
+  const AssemblyPlan stuck = plan_assembly(parts, {}, kTolerance_mm);
+  EXPECT_FALSE(stuck.found);
+  EXPECT_EQ(stuck.removal, (std::vector<Vec3>{kZ, kZ}));
+  EXPECT_EQ(stuck.blocks, (Blocks{{1}, {0}}));
+
+  const AssemblyPlan plan = plan_assembly(parts, {-kX, kX, -kY}, kTolerance_mm);
+  EXPECT_TRUE(plan.found);
+  // Along -x, B's cell right of A runs into it; +x is free. Then A leaves along its own +z,
+  // where B was: B goes in after A.
+  EXPECT_EQ(plan.removal, (std::vector<Vec3>{kX, kZ}));
+  EXPECT_EQ(plan.blocks, (Blocks{{}, {0}}));
+  EXPECT_EQ(plan.order, (std::vector<std::int32_t>{1, 0}));
   expect_collision_free(plan, parts.size());
 }
 
 TEST(PlanAssembly, NegativeToleranceThrows) {
   const Grid g = make_grid(1, 1, 1, 1.0);
   const auto parts = extract_parts(g.mesh, zeros(g), zeros(g), {{kZ}});
-  EXPECT_THROW(plan_assembly(g.mesh, parts, -1.0), Error);
+  EXPECT_THROW(plan_assembly(parts, {}, -1.0), Error);
 }
 
 // --- brute-force reference and real shapes ---
 
-// Blocking by brute force, in double precision: from the same sample points (tet barycentres,
-// points 10 % of the way from each boundary face's centre to its tet's barycentre), clip the
-// ray against every tet of every other part and merge the intervals per part.
+// Blocking by brute force, in double precision: from the same sample points (assembly_samples),
+// clip the ray against every tet of every other part, merge the intervals per part, and measure
+// their depth against every triangle of that part.
 std::vector<std::vector<std::int32_t>> reference_blocks(const TetMesh& mesh,
                                                         const std::vector<Part>& parts,
                                                         double tolerance_mm) {
@@ -965,23 +998,24 @@ std::vector<std::vector<std::int32_t>> reference_blocks(const TetMesh& mesh,
   auto corner = [&](std::int32_t t, int k) -> const Vec3& {
     return mesh.vertices[mesh.tets[t][k]];
   };
-  auto centre = [&](std::int32_t t) -> Vec3 {
-    return 0.25 * (corner(t, 0) + corner(t, 1) + corner(t, 2) + corner(t, 3));
+  const std::vector<std::vector<Vec3>> all_samples = assembly_samples(parts);
+  // Does the way from o + lo d to o + hi d, taken every tolerance_mm / 2, get farther than
+  // tolerance_mm from every triangle of part a?
+  auto deep = [&](std::size_t a, const Vec3& o, const Vec3& d, double lo, double hi) {
+    const TriMesh& m = parts[a].mesh;
+    for (double t = lo + tolerance_mm; t < hi - tolerance_mm; t += 0.5 * tolerance_mm) {
+      const Vec3 p = o + t * d;
+      double nearest = INFINITY;
+      for (const Tri& tri : m.triangles)
+        nearest = std::min(nearest, (closest_on_triangle(p, m.vertices[tri[0]], m.vertices[tri[1]],
+                                                         m.vertices[tri[2]]) - p).norm());
+      if (nearest >= tolerance_mm) return true;
+    }
+    return false;
   };
   std::vector<std::set<std::int32_t>> blocks(parts.size());
   for (const Part& b : parts) {
-    std::vector<Vec3> samples;
-    for (const std::int32_t t : b.tets) {
-      samples.push_back(centre(t));
-      for (int i = 0; i < 4; ++i) {
-        const std::int32_t u = mesh.neighbors[t][i];
-        if (u >= 0 && part_of[u] == b.id) continue;
-        const Vec3 f =
-            (corner(t, kTetFaces[i][0]) + corner(t, kTetFaces[i][1]) + corner(t, kTetFaces[i][2])) /
-            3.0;
-        samples.push_back(f + 0.1 * (centre(t) - f));
-      }
-    }
+    const std::vector<Vec3>& samples = all_samples[b.id];
     const Vec3& d = b.direction;
     for (const Vec3& o : samples) {
       std::vector<std::vector<std::pair<double, double>>> spans(parts.size());
@@ -1007,7 +1041,8 @@ std::vector<std::vector<std::int32_t>> reference_blocks(const TetMesh& mesh,
         for (std::size_t k = 0; k < s.size();) {
           double lo = s[k].first, hi = s[k].second;
           for (++k; k < s.size() && s[k].first <= hi + 1e-9; ++k) hi = std::max(hi, s[k].second);
-          if (hi - lo > tolerance_mm) blocks[b.id].insert(static_cast<std::int32_t>(a));
+          if (hi - lo > 2 * tolerance_mm && deep(a, o, d, lo, hi))
+            blocks[b.id].insert(static_cast<std::int32_t>(a));
         }
       }
     }
@@ -1025,10 +1060,11 @@ TEST(PlanAssembly, MatchesBruteForceOnAJitteredGridWithObliqueDirections) {
       {Vec3(0.2, -0.3, 1.0), Vec3(-1.0, 0.5, 0.1), Vec3(0.1, 1.0, -0.4), Vec3(0.6, 0.6, -0.5)});
   ASSERT_GT(parts.size(), 5u);
   expect_valid_parts(g, parts);
-  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
-  expect_plan_follows(plan, reference_blocks(g.mesh, parts, kTolerance_mm),
-                      reference_blocks(g.mesh, flipped(parts), kTolerance_mm));
-  EXPECT_GT(std::count(plan.reversed.begin(), plan.reversed.end(), true), 0);
+  constexpr double kDepth_mm = 0.3;  // of 4 mm cells: shallow paths near edges do not block
+  const AssemblyPlan plan = plan_assembly(parts, {}, kDepth_mm);
+  expect_plan_follows(plan, parts, reference_blocks(g.mesh, parts, kDepth_mm),
+                      reference_blocks(g.mesh, flipped(parts), kDepth_mm));
+  EXPECT_GT(std::ranges::count(reversed_parts(plan, parts), true), 0);
   std::size_t pairs = 0;
   for (const auto& b : plan.blocks) pairs += b.size();
   EXPECT_GT(pairs, 0u);
@@ -1091,8 +1127,8 @@ TEST(PartsRealShape, VoxelizedElephantGivesManifoldPartsAndExactBlocking) {
   const auto parts = extract_parts(g.mesh, label, zeros(g), directions);
   ASSERT_GT(parts.size(), 20u);
   expect_valid_parts(g, parts);
-  const AssemblyPlan plan = plan_assembly(g.mesh, parts, kTolerance_mm);
-  expect_plan_follows(plan, blocks_by_cells(g, parts), blocks_by_cells(g, flipped(parts)));
+  const AssemblyPlan plan = plan_assembly(parts, {}, kTolerance_mm);
+  expect_plan_follows(plan, parts, blocks_by_cells(g, parts), blocks_by_cells(g, flipped(parts)));
   if (plan.found) expect_collision_free(plan, parts.size());
   // The same on one thread.
   tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
@@ -1100,9 +1136,9 @@ TEST(PartsRealShape, VoxelizedElephantGivesManifoldPartsAndExactBlocking) {
   ASSERT_EQ(again.size(), parts.size());
   for (std::size_t p = 0; p < parts.size(); ++p)
     EXPECT_EQ(again[p].mesh.triangles, parts[p].mesh.triangles);
-  const AssemblyPlan plan_one = plan_assembly(g.mesh, again, kTolerance_mm);
+  const AssemblyPlan plan_one = plan_assembly(again, {}, kTolerance_mm);
   EXPECT_EQ(plan_one.blocks, plan.blocks);
-  EXPECT_EQ(plan_one.reversed, plan.reversed);
+  EXPECT_EQ(plan_one.removal, plan.removal);
   EXPECT_EQ(plan_one.order, plan.order);
 }
 

@@ -222,28 +222,38 @@ InterfaceSmoothness outer_surface_smoothness(const std::vector<Part>& parts);
 // How the parts go together.
 struct AssemblyPlan {
   bool found = false;  // an order exists in which no part collides with those placed before it
-  // Parts in the order they are put in place; each slides in along -d from far away (it arrives
-  // from +infinity * d). When !found: first the parts that disassembly could take out, in the
-  // order they go in (collision-free among themselves, with or without the others in place),
-  // then the parts left blocked, by ascending id.
+  // Parts in the order they are put in place; each slides in along -removal[i] from far away
+  // (it arrives from +infinity * removal[i]). When !found: first the parts that disassembly
+  // could take out, in the order they go in (collision-free among themselves, with or without
+  // the others in place), then the parts left blocked, by ascending id.
   std::vector<std::int32_t> order;
-  // reversed[i]: part i goes in and out along -d_i rather than +d_i. A DHF along d is one along
-  // -d too, so the caller flips the part's direction (Part::direction = -direction).
-  std::vector<bool> reversed;
-  // blocks[i] lists the parts that part i would run into when it leaves along +d_i (-d_i when
-  // reversed[i]).
+  // removal[i]: the unit direction part i leaves along when the object is taken apart: +d_i or
+  // -d_i when either is free (a DHF along d is one along -d too), else the first free one of the
+  // other directions tried; +d_i for a part left blocked.
+  std::vector<Vec3> removal;
+  // blocks[i] lists the parts that part i would run into when it leaves along removal[i].
   std::vector<std::vector<std::int32_t>> blocks;
   std::string message;  // when !found: which parts block each other
 };
 
-// Finds which parts block which and orders them: disassembly removes a part no remaining part
-// blocks (smallest id first); assembly is the reverse.
-// Part B is blocked by part A when a ray along +d_B from a point inside B runs through A's
-// interior over more than tolerance_mm. The points are the barycentre of each of B's tets and a
-// point just inside each of its boundary faces. Contact on shared interfaces, and sliding along
-// them, does not block. tolerance_mm >= 0, else Error{InvalidOptions}.
-// Pre: `parts` is extract_parts(tets, ...), ids 0..n-1 in order.
-AssemblyPlan plan_assembly(const TetMesh& tets, const std::vector<Part>& parts,
-                           double tolerance_mm);
+// The points plan_assembly() moves, per part: points just inside each part's boundary, near the
+// corners of every triangle and at the centres of a subdivision of it into sub-triangles about
+// 1 % of the parts' bounding-box diagonal across, moved a hair (1e-5 of it) against the
+// triangle's normal.
+std::vector<std::vector<Vec3>> assembly_samples(const std::vector<Part>& parts);
+
+// Finds which parts block which and orders them: disassembly takes out a part that no remaining
+// part blocks; assembly is the reverse. A part may leave along +d, then -d (smallest id first);
+// only when no remaining part can, along `extra_directions`, in their order. Taking a part out
+// never blocks another, so this finds a complete order whenever one of these straight moves
+// exists for each part in turn.
+// Part B is blocked by part A when a ray from one of B's assembly_samples() goes deeper than
+// tolerance_mm into A: a point of its way through A, taken every tolerance_mm / 2 as
+// `dhfcast check` does, lies farther than that from A's boundary. Contact on shared interfaces,
+// and sliding along them, does not block.
+// tolerance_mm >= 0, else Error{InvalidOptions}. Pre: parts have ids 0..n-1 in order and closed
+// meshes.
+AssemblyPlan plan_assembly(const std::vector<Part>& parts,
+                           const std::vector<Vec3>& extra_directions, double tolerance_mm);
 
 }  // namespace dhfcast

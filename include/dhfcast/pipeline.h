@@ -62,7 +62,7 @@ struct Decomposition {
   InterfaceSmoothness outer_smoothness;
   AssemblyPlan assembly;
   std::vector<Mold> molds;  // one per part, in part order; empty when !make_molds
-  double assembly_tolerance_mm = 0.0;  // penetration depth below which parts do not block
+  double assembly_tolerance_mm = 0.0;  // depth into a part below which a move does not block
   StageTimes timings;
 };
 

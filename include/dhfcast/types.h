@@ -67,6 +67,8 @@ double tet_face_area(const TetMesh& mesh, std::int32_t t, int i);
 // Fills mesh.neighbors from mesh.tets. Throws Error{Internal} when a face is shared by more
 // than two tets.
 void build_tet_adjacency(TetMesh& mesh);
+// The point of triangle abc closest to p.
+Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
 // Reverses every triangle's winding.
 void flip_orientation(TriMesh& mesh);
 

@@ -114,7 +114,7 @@ CheckItem check_assembly(const CheckContext& c) {
   CheckItem item;
   item.name = "assembly";
 
-  // --- 1. who blocks whom: tally[m][p] for part m arriving along -d_m past part p ---
+  // --- 1. who blocks whom: tally[m][p] for part m arriving along -removal_m past part p ---
   std::vector<std::vector<SweepTally>> tally(n, std::vector<SweepTally>(n));
   std::vector<std::int64_t> sample_count(n, 0);
   for (std::size_t m = 0; m < n && n > 1; ++m) {
@@ -124,7 +124,7 @@ CheckItem check_assembly(const CheckContext& c) {
     sample_count[m] = static_cast<std::int64_t>(samples.size());
     for (std::size_t p = 0; p < n; ++p)
       if (p != m)
-        tally[m][p] = sweep_all(samples, c.parts[m].direction, c.parts[p].solid, o.epsilon_mm);
+        tally[m][p] = sweep_all(samples, c.parts[m].removal, c.parts[p].solid, o.epsilon_mm);
   }
 
   // --- 2. does any order work? q must come before m when q runs into m (topological sort,

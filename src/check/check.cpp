@@ -75,6 +75,7 @@ struct PartEntry {
   std::int32_t id = -1;
   std::string mesh;
   std::optional<Vec3> direction;
+  std::optional<Vec3> removal;  // removal_direction; the direction when absent
   double volume_mm3 = std::numeric_limits<double>::quiet_NaN();
   std::string mold_up, mold_down;  // both empty when the part lists no molds
   std::string mold_error;          // "molds": {"error": ...}
@@ -202,6 +203,14 @@ FolderContents read_contents(const fs::path& outdir, const std::string& text) {
     else if (std::abs(p.direction->norm() - 1.0) >= 1e-6)
       problem(where + format(" direction has length %.9g, not 1", p.direction->norm()));
     if (p.direction && p.direction->norm() == 0.0) p.direction.reset();
+    if (jp.contains("removal_direction")) {
+      p.removal = vec3(jp["removal_direction"]);
+      if (!p.removal)
+        problem(where + " removal_direction is not [x, y, z]");
+      else if (std::abs(p.removal->norm() - 1.0) >= 1e-6)
+        problem(where + format(" removal_direction has length %.9g, not 1", p.removal->norm()));
+      if (p.removal && p.removal->norm() == 0.0) p.removal.reset();
+    }
     if (jp.contains("volume_mm3") && jp["volume_mm3"].is_number())
       p.volume_mm3 = jp["volume_mm3"].get<double>();
     else
@@ -530,6 +539,7 @@ CheckReport check_output(const CheckOptions& options) {
           .id = entry.id,
           .mesh_file = entry.mesh,
           .direction = entry.direction->normalized(),
+          .removal = entry.removal.value_or(*entry.direction).normalized(),
           .volume_mm3 = std::isfinite(entry.volume_mm3) ? entry.volume_mm3 : signed_volume(*m.mesh),
           .solid = std::move(*indices[i]),
           .molds_listed = !entry.mold_up.empty() || !entry.mold_error.empty(),

@@ -17,6 +17,7 @@ struct CheckedPart {
   std::int32_t id = 0;
   std::string mesh_file;           // as written in decomposition.json
   Vec3 direction = Vec3::UnitZ();  // normalized
+  Vec3 removal = Vec3::UnitZ();    // normalized; the way it leaves the assembly
   double volume_mm3 = 0.0;         // from decomposition.json (the mesh's when missing there)
   SurfaceIndex solid;
   bool molds_listed = false;  // decomposition.json names mold halves, or why there are none

@@ -64,6 +64,11 @@ CheckItem check_fidelity(const CheckContext& c) {
     }
     to_input[i] = c.input->distance(p);
   });
+  // Where each side's largest distance is: the place to look at.
+  const auto in_worst = std::ranges::max_element(to_parts) - to_parts.begin();
+  const auto out_worst = std::ranges::max_element(to_input) - to_input.begin();
+  const Vec3 in_at = to_parts.empty() ? Vec3::Zero() : on_input[in_worst].point;
+  const Vec3 out_at = to_input.empty() ? Vec3::Zero() : on_parts[out_worst].point;
   std::erase_if(to_input, [](double d) { return d < 0; });
 
   // --- 4. figures ---
@@ -80,9 +85,10 @@ CheckItem check_fidelity(const CheckContext& c) {
                   {"outer_part_samples", double(to_input.size())},
                   {"limit_mm", limit_mm}};
   item.summary = format(
-      "input to parts: p99 %.3g mm, max %.3g mm; outer part surface to input: "
-      "p99 %.3g mm, max %.3g mm (limit p99 %.3g mm)",
-      in_p99, in_max, out_p99, out_max, limit_mm);
+      "input to parts: p99 %.3g mm, max %.3g mm (at %.2f %.2f %.2f); outer part surface to "
+      "input: p99 %.3g mm, max %.3g mm (at %.2f %.2f %.2f) (limit p99 %.3g mm)",
+      in_p99, in_max, in_at.x(), in_at.y(), in_at.z(), out_p99, out_max, out_at.x(), out_at.y(),
+      out_at.z(), limit_mm);
   return item;
 }
 

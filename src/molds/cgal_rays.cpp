@@ -43,7 +43,9 @@ LineIndex::LineIndex(const TriMesh& mesh) : impl_(std::make_unique<Impl>()) {
     s.first_vertex.push_back(a);
   }
   s.tree.insert(s.triangles.cbegin(), s.triangles.cend());
-  s.tree.build();  // now, so that concurrent queries only read
+  // Both search structures now, so that concurrent queries only read.
+  s.tree.build();
+  s.tree.accelerate_distance_queries();
 }
 
 LineIndex::~LineIndex() = default;
@@ -87,6 +89,10 @@ std::optional<std::vector<LineInterval>> LineIndex::line_intervals(const Vec3& o
   }
   if (inside) return std::nullopt;
   return out;
+}
+
+double LineIndex::distance(const Vec3& p) const {
+  return std::sqrt(impl_->tree.squared_distance(point_of(p)));
 }
 
 std::vector<LineInterval> robust_line_intervals(const LineIndex& index, const Vec3& origin,

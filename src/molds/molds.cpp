@@ -7,10 +7,14 @@
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
+#include <array>
 #include <cfenv>
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
+#include <tuple>
+#include <utility>
 
 #include "dhfcast/error.h"
 #include "dhfcast/mesh.h"
@@ -54,15 +58,24 @@ struct HeightGrid {
   int id(int i, int j) const { return j * (nx + 1) + i; }
   double x(int i) const { return x0 + i * s; }
   double y(int j) const { return y0 + j * s; }
-  // The piecewise-linear surface's height at (x, y), clamped to the grid.
-  double height(double px, double py) const {
+  // The grid triangle under (x, y), clamped to the grid: its nodes and the point's barycentric
+  // weights on them.
+  struct Spot {
+    std::array<int, 3> node{};
+    std::array<double, 3> weight{};
+  };
+  Spot spot(double px, double py) const {
     const double u = std::clamp((px - x0) / s, 0.0, double(nx)),
                  v = std::clamp((py - y0) / s, 0.0, double(ny));
     const int i = std::min(int(u), nx - 1), j = std::min(int(v), ny - 1);
     const double fu = u - i, fv = v - j;
-    const double a = h[id(i, j)], b = h[id(i + 1, j)], c = h[id(i + 1, j + 1)],
-                 e = h[id(i, j + 1)];
-    return fu >= fv ? a + fu * (b - a) + fv * (c - b) : a + fv * (e - a) + fu * (c - e);
+    if (fu >= fv) return {{id(i, j), id(i + 1, j), id(i + 1, j + 1)}, {1 - fu, fu - fv, fv}};
+    return {{id(i, j), id(i, j + 1), id(i + 1, j + 1)}, {1 - fv, fv - fu, fu}};
+  }
+  // The piecewise-linear surface's height at (x, y), clamped to the grid.
+  double height(double px, double py) const {
+    const Spot p = spot(px, py);
+    return p.weight[0] * h[p.node[0]] + p.weight[1] * h[p.node[1]] + p.weight[2] * h[p.node[2]];
   }
 };
 
@@ -276,6 +289,91 @@ void flatten_disc(HeightGrid& g, double xc, double yc, double radius, double hei
         g.h[g.id(i, j)] = height;
 }
 
+// A point of the part's footprint where the surfaces bounding the up and the down half are
+// held: each surface's height there is the weighted sum of three grid nodes' heights, and must
+// be at least up_min (up half) and at most down_max (down half), heights along d in mm.
+struct FitPoint : HeightGrid::Spot {
+  double up_min = -INFINITY, down_max = INFINITY;
+};
+
+// Does the stretch (t0, t1) of the line origin + t * d reach deeper than epsilon from the part's
+// surface? Sampled every epsilon / 2, its middle first (the usual answer for a thick stretch).
+bool deeper_than(const LineIndex& index, const Vec3& origin, const Vec3& d, double t0, double t1,
+                 double epsilon_mm) {
+  if (t1 - t0 <= 2 * epsilon_mm) return false;  // every point is within half of it from an end
+  if (index.distance(origin + 0.5 * (t0 + t1) * d) > epsilon_mm) return true;
+  const int n = std::min(256, static_cast<int>(std::ceil((t1 - t0) / (0.5 * epsilon_mm))) + 1);
+  for (int q = 1; q + 1 < n; ++q)
+    if (index.distance(origin + (t0 + (t1 - t0) * q / (n - 1)) * d) > epsilon_mm) return true;
+  return false;
+}
+
+// What release asks of the two surfaces on a line meeting the part in `in` (parameters =
+// heights along d), where the parting surface is at `parting`: the up half is pulled along +d
+// past everything above it, so its surface must be at least the bottom of the topmost
+// stretch; the down half's at most the top of the lowest. Gaps between stretches that the
+// undercut tolerance accepts (none deeper than epsilon: the dhf check's rule) are then left to
+// neither half: the cast fills them, within epsilon of the part, where a half holding one could
+// not leave. A stretch no deeper than epsilon / 2 from the part's surface (a line along a wall)
+// asks nothing: a sweep across it does not go deeper than epsilon, the molds check's rule, with
+// a margin for lines beside this one. A quarter of epsilon inside the stretch, so that float
+// rounding does not move a half's face onto the part's. {up_min, down_max}; nullopt when the
+// parting surface already meets both (the fit only raises the up surface and lowers the down
+// one), or the line is not a double height field up to the tolerance and no half releases
+// there whatever the surfaces do. The depth tests run only where a bound would bind.
+std::optional<std::pair<double, double>> release_bounds(const std::vector<LineInterval>& in,
+                                                        double parting, const LineIndex& index,
+                                                        const Vec3& origin, const Vec3& d,
+                                                        double epsilon_mm) {
+  if (in.empty()) return std::nullopt;
+  const double margin = 0.25 * epsilon_mm;
+  double up_min = in.back().begin + margin, down_max = in.front().end - margin;
+  if (parting >= up_min) up_min = -INFINITY;
+  if (parting <= down_max) down_max = INFINITY;
+  if (up_min == -INFINITY && down_max == INFINITY) return std::nullopt;
+  for (std::size_t k = 0; k + 1 < in.size(); ++k)
+    if (deeper_than(index, origin, d, in[k].end, in[k + 1].begin, epsilon_mm)) return std::nullopt;
+  auto holds = [&](const LineInterval& iv) {
+    return deeper_than(index, origin, d, iv.begin, iv.end, 0.5 * epsilon_mm);
+  };
+  if (up_min > -INFINITY && !holds(in.back())) up_min = -INFINITY;
+  if (down_max < INFINITY && !holds(in.front())) down_max = INFINITY;
+  if (up_min == -INFINITY && down_max == INFINITY) return std::nullopt;
+  return std::pair{up_min, down_max};
+}
+
+// Raises the up half's surface and lowers the down half's (node heights, starting from the
+// parting surface) until both meet their bounds at every fit point: the grid's nodes alone do
+// not stop a flat cell from leaving a thin or bent part, or the end of a lip, between them.
+// Cyclic projections onto each unmet bound (Kaczmarz), in a fixed order so the result does not
+// depend on threads. The bounds only push one way, so they can always all be met, and the up
+// surface never falls below the down one; nodes stay below `top` and above `bottom`.
+void fit_surfaces(std::vector<double>& up, std::vector<double>& down,
+                  const std::vector<FitPoint>& points, double bottom, double top) {
+  constexpr int kRounds = 200;
+  constexpr double kTolerance = 1e-9;  // mm
+  for (int round = 0; round < kRounds; ++round) {
+    bool moved = false;
+    for (const FitPoint& p : points)
+      for (auto [h, sign, bound] : {std::tuple{&up, 1.0, p.up_min}, {&down, -1.0, -p.down_max}}) {
+        // sign * height >= bound
+        double value = 0.0, norm2 = 0.0;
+        for (int q = 0; q < 3; ++q) {
+          value += p.weight[q] * (*h)[p.node[q]];
+          norm2 += p.weight[q] * p.weight[q];
+        }
+        const double miss = bound - sign * value;
+        if (miss <= kTolerance) continue;
+        moved = true;
+        for (int q = 0; q < 3; ++q) {
+          double& node = (*h)[p.node[q]];
+          node = std::clamp(node + sign * miss * p.weight[q] / norm2, bottom, top);
+        }
+      }
+    if (!moved) return;
+  }
+}
+
 // The motion from a half's print frame to the model: print x is the frame's x, and the far face
 // (at local w = far_centre.z(), facing +w for the up half, -w for the down half) lies on z = 0
 // facing -z, centred on the origin. The up half is turned over about x.
@@ -419,9 +517,10 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
   // On a line meeting the part, the surface passes through it (bottom <= h <= top): then the
   // up half holds only what lies above the part and the down half what lies below, and both
   // release. Where the part is a DHF only up to epsilon (several intervals), the thickest one.
+  std::vector<std::vector<LineInterval>> node_lines(nodes);
   tbb::parallel_for(0, nodes, [&](int k) {
     const int i = k % (g.nx + 1), j = k / (g.nx + 1);
-    const std::vector<LineInterval> in =
+    const std::vector<LineInterval>& in = node_lines[k] =
         robust_line_intervals(index, frame.world(Vec3(g.x(i), g.y(j), 0.0)), d, hair);
     double best = -1;
     for (const LineInterval& iv : in)
@@ -491,8 +590,55 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
     (t == 0 ? mold.sprues : mold.vents).push_back(ch);
   }
 
-  // --- 6. halves: block halves minus the cavity and channels; bumps on down, sockets in up ---
-  TriMesh up_block = block_half(g, w_top), down_block = block_half(g, w_bottom);
+  // --- 6. the surfaces bounding each half: the parting surface, the up half's raised and the
+  // down half's lowered where release needs it on the line through a grid node or a point of
+  // the part's faces (the part bends and ends between nodes), so they part across the gaps the
+  // tolerance accepts ---
+  // Points of the part's faces, half a cell apart across d (a hair inside each face, so that
+  // their lines do not run along the walls its edges may top); a face smaller than that gives
+  // its centroid. Walls (faces along d) are left out: lines along them bind nothing, and the
+  // faces above and below them give the lines beside them.
+  std::vector<Vec3> on_part;
+  for (const Tri& t : cavity.triangles) {
+    const Vec3 &a = cavity.vertices[t[0]], &b = cavity.vertices[t[1]], &c = cavity.vertices[t[2]];
+    const Vec3 normal = (b - a).cross(c - a);
+    if (std::abs(normal.dot(d)) <= 0.05 * normal.norm()) continue;
+    const Vec3 centroid = (a + b + c) / 3.0;
+    auto across = [&](const Vec3& e) { return (e - e.dot(d) * d).norm(); };
+    const double longest = std::max({across(b - a), across(c - b), across(a - c)});
+    const int n = std::min(static_cast<int>(longest / (0.5 * g.s)), 64);
+    if (n == 0) on_part.push_back(centroid);
+    for (int i = 0; i <= n && n > 0; ++i)
+      for (int j = 0; i + j <= n; ++j) {
+        const Vec3 p = (i * a + j * b + (n - i - j) * c) / double(n);
+        on_part.push_back(centroid + 0.98 * (p - centroid));
+      }
+  }
+  const std::size_t num_on_part = on_part.size();
+  std::vector<std::optional<FitPoint>> candidates(num_on_part + nodes);
+  tbb::parallel_for(std::size_t{0}, candidates.size(), [&](std::size_t k) {
+    const bool surface_point = k < num_on_part;
+    const int node = static_cast<int>(k - num_on_part);
+    const Vec3 at = surface_point ? frame.local(on_part[k])
+                                  : Vec3(g.x(node % (g.nx + 1)), g.y(node / (g.nx + 1)), 0.0);
+    const Vec3 origin = frame.world(Vec3(at.x(), at.y(), 0.0));
+    const std::vector<LineInterval> in =
+        surface_point ? robust_line_intervals(index, origin, d, hair) : node_lines[node];
+    if (const auto bounds =
+            release_bounds(in, g.height(at.x(), at.y()), index, origin, d, opts.epsilon_mm)) {
+      FitPoint p{g.spot(at.x(), at.y())};
+      std::tie(p.up_min, p.down_max) = *bounds;
+      candidates[k] = p;
+    }
+  });
+  std::vector<FitPoint> fit;
+  for (const std::optional<FitPoint>& p : candidates)
+    if (p) fit.push_back(*p);
+  HeightGrid up_surface = g, down_surface = g;
+  fit_surfaces(up_surface.h, down_surface.h, fit, w_bottom + 0.5 * wall, w_top - 0.5 * wall);
+
+  // --- 7. halves: block halves minus the cavity and channels; bumps on down, sockets in up ---
+  TriMesh up_block = block_half(up_surface, w_top), down_block = block_half(down_surface, w_bottom);
   for (TriMesh* m : {&up_block, &down_block, &channels, &bumps, &sockets}) to_world(*m, frame);
   // The cavity is cut last: the other operands are simple closed shapes made here, and only
   // the part can intersect or touch itself.
@@ -503,7 +649,7 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
                                  {BooleanOp::Difference, &channels, name + ": down half channels"},
                                  {BooleanOp::Difference, &cavity, name + ": down half"}});
 
-  // --- 7. each half laid on its flat outer face, to print as it is; what is written (rounded
+  // --- 8. each half laid on its flat outer face, to print as it is; what is written (rounded
   // to float there) is what is checked ---
   const double cx = g.x0 + 0.5 * g.nx * g.s, cy = g.y0 + 0.5 * g.ny * g.s;
   mold.up_to_model = print_to_model(frame, Vec3(cx, cy, w_top), true);

@@ -38,6 +38,8 @@ class LineIndex {
   // (the line grazes an edge or lies in a face's plane).
   std::optional<std::vector<LineInterval>> line_intervals(const Vec3& origin,
                                                           const Vec3& dir) const;
+  // Distance from p to the mesh's surface, mm.
+  double distance(const Vec3& p) const;
 
  private:
   struct Impl;

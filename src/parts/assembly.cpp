@@ -1,10 +1,10 @@
 #include <embree3/rtcore.h>
 #include <tbb/blocked_range.h>
-#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -37,6 +37,27 @@ void collect_hit(const RTCFilterFunctionNArguments* args) {
   const RTCHit* hit = reinterpret_cast<const RTCHit*>(args->hit);
   ctx->hits->push_back((std::uint64_t{hit->geomID} << 32) | hit->primID);
   args->valid[0] = 0;
+}
+
+// A point query for one part's triangles within a radius; stops at the first.
+struct NearQuery {
+  const TriMesh* mesh;
+  unsigned part;
+  Vec3 p;
+  double radius_mm;
+  bool found;
+};
+
+bool near_triangle(RTCPointQueryFunctionArguments* args) {
+  auto* q = static_cast<NearQuery*>(args->userPtr);
+  if (args->geomID != q->part) return false;
+  const Tri& t = q->mesh->triangles[args->primID];
+  const std::vector<Vec3>& v = q->mesh->vertices;
+  if ((closest_on_triangle(q->p, v[t[0]], v[t[1]], v[t[2]]) - q->p).norm() >= q->radius_mm)
+    return false;
+  q->found = true;
+  args->query->radius = 0.0f;  // nothing more to look for
+  return true;
 }
 
 // One Embree scene holding every part's boundary; geometry id = part id.
@@ -79,6 +100,17 @@ class PartScene {
   }
   PartScene(const PartScene&) = delete;
   PartScene& operator=(const PartScene&) = delete;
+
+  // Whether part q's boundary passes within radius_mm of p. Thread-safe.
+  bool near(std::int32_t q, const Vec3& p, double radius_mm) const {
+    NearQuery near{&parts_[q].mesh, static_cast<unsigned>(q), p, radius_mm, false};
+    const Eigen::Vector3f at = p.cast<float>();
+    RTCPointQuery query{at.x(), at.y(), at.z(), 0.0f, static_cast<float>(radius_mm)};
+    RTCPointQueryContext context;
+    rtcInitPointQueryContext(&context);
+    rtcPointQuery(scene_, &query, &context, near_triangle, &near);
+    return near.found;
+  }
 
   // Every crossing of the ray origin + t * dir, t > 0, with the parts' boundaries, sorted by t.
   // Embree only finds the triangles; t and the side are computed in double precision. Faces
@@ -123,43 +155,44 @@ class PartScene {
   RTCScene scene_ = nullptr;
 };
 
-// A point inside part `part`, from which a ray leaves along the part's direction.
-struct Sample {
-  Vec3 point;
-  std::int32_t part;
-};
-
-// Barycentres of every tet of every part, plus one point just inside each boundary face (10 %
-// of the way to its tet's barycentre: well clear of the face in float precision, close enough to
-// catch thin obstacles the barycentres miss).
-std::vector<Sample> part_samples(const TetMesh& tets, const std::vector<Part>& parts,
-                                 const std::vector<std::int32_t>& part_of) {
-  std::vector<Sample> samples;
-  for (const Part& part : parts) {
-    for (const std::int32_t t : part.tets) {
-      const Tet& tet = tets.tets[t];
-      const Vec3 centre = 0.25 * (tets.vertices[tet[0]] + tets.vertices[tet[1]] +
-                                  tets.vertices[tet[2]] + tets.vertices[tet[3]]);
-      samples.push_back({centre, part.id});
-      for (int i = 0; i < 4; ++i) {
-        const std::int32_t u = tets.neighbors[t][i];
-        if (u >= 0 && part_of[u] == part.id) continue;
-        const Vec3 face_centre =
-            (tets.vertices[tet[kTetFaces[i][0]]] + tets.vertices[tet[kTetFaces[i][1]]] +
-             tets.vertices[tet[kTetFaces[i][2]]]) /
-            3.0;
-        samples.push_back({face_centre + 0.1 * (centre - face_centre), part.id});
+// Points just inside a mesh's boundary, where a moving part first touches another: near each
+// corner of each triangle and at the centres of its k x k sub-triangles (k so that they lie at
+// most about `spacing` apart), moved `inset` against the triangle's normal. All lie strictly
+// inside their triangles: off the edges, where a path along a face of a neighbour would graze
+// it.
+std::vector<Vec3> boundary_samples(const TriMesh& mesh, double spacing, double inset) {
+  constexpr int kMaxSubdivision = 8;
+  constexpr double kCorner = 0.02;  // of the way from a corner to the centroid
+  std::vector<Vec3> samples;
+  for (const Tri& tri : mesh.triangles) {
+    const Vec3 &a = mesh.vertices[tri[0]], &b = mesh.vertices[tri[1]], &c = mesh.vertices[tri[2]];
+    const Vec3 area_normal = (b - a).cross(c - a);
+    const double length = area_normal.norm();
+    if (length == 0.0) continue;
+    const Vec3 in = -inset / length * area_normal;
+    const Vec3 centroid = (a + b + c) / 3.0;
+    for (const Vec3* corner : {&a, &b, &c})
+      samples.push_back(*corner + kCorner * (centroid - *corner) + in);
+    const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+    const int k = std::clamp(static_cast<int>(std::ceil(longest / spacing)), 1, kMaxSubdivision);
+    for (int i = 0; i < k; ++i)
+      for (int j = 0; i + j < k; ++j) {
+        // The sub-triangle at (i, j) pointing like the triangle, and the flipped one beside it.
+        samples.push_back(a + (i + 1.0 / 3) / k * (b - a) + (j + 1.0 / 3) / k * (c - a) + in);
+        if (i + j + 1 < k)
+          samples.push_back(a + (i + 2.0 / 3) / k * (b - a) + (j + 2.0 / 3) / k * (c - a) + in);
       }
-    }
   }
   return samples;
 }
 
-// Parts whose interior the ray from a point of part `self` runs through over more than
-// tolerance_mm, given its crossings sorted by t. entered_at (one slot per part, all -1) is
-// scratch space, left all -1 again.
+// Parts whose interior the ray from a point of part `self` runs through, given its crossings
+// sorted by t, where deep(part, t_in, t_out) says the stretch inside goes deeper than
+// tolerance_mm. entered_at (one slot per part, all -1) is scratch space, left all -1 again.
+template <class Deep>
 void mark_obstacles(const std::vector<Crossing>& crossings, std::int32_t self, double tolerance_mm,
-                    std::vector<std::int32_t>& entered_at, std::vector<std::int32_t>& found) {
+                    const Deep& deep, std::vector<std::int32_t>& entered_at,
+                    std::vector<std::int32_t>& found) {
   found.clear();
   for (std::size_t k = 0; k < crossings.size(); ++k) {
     const Crossing& c = crossings[k];
@@ -175,7 +208,9 @@ void mark_obstacles(const std::vector<Crossing>& crossings, std::int32_t self, d
       // Repeated entries (a hit on an edge shared by two triangles) count once.
       if (!grazing && entry < 0) entry = static_cast<std::int32_t>(k);
     } else if (entry >= 0) {
-      if (c.t_mm - crossings[entry].t_mm > tolerance_mm) found.push_back(c.part);
+      // Every point of a stretch is within half its length of its ends, on the surface.
+      const double t_in = crossings[entry].t_mm;
+      if (c.t_mm - t_in > 2 * tolerance_mm && deep(c.part, t_in, c.t_mm)) found.push_back(c.part);
       entry = -1;
     }
   }
@@ -213,90 +248,172 @@ std::string blocking_cycle(const std::vector<std::vector<std::int32_t>>& blocks,
   return message;
 }
 
+// SplitMix64's finalizer: a fixed scramble of an index.
+std::uint64_t mix(std::uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+// What the straight moves of one part run into, from its boundary samples.
+class Collisions {
+ public:
+  Collisions(const std::vector<Part>& parts, double tolerance_mm)
+      : scene_(parts),
+        num_parts_(static_cast<std::int32_t>(parts.size())),
+        tolerance_mm_(tolerance_mm),
+        samples_(assembly_samples(parts)) {
+    // In a fixed pseudo-random order, the first few hundred samples already spread over the
+    // whole part, so a blocked move is usually found after a few of them.
+    for (std::vector<Vec3>& samples : samples_) {
+      std::vector<std::pair<std::uint64_t, std::size_t>> keys;
+      for (std::size_t i = 0; i < samples.size(); ++i) keys.push_back({mix(i), i});
+      std::sort(keys.begin(), keys.end());
+      std::vector<Vec3> shuffled;
+      for (const auto& key : keys) shuffled.push_back(samples[key.second]);
+      samples = std::move(shuffled);
+    }
+  }
+
+  // A part among those marked in `among` that part p runs into when leaving along dir, or -1 when
+  // there is none. Stops at the first collision: which blocker it names may depend on the thread
+  // schedule, whether there is one does not.
+  std::int32_t blocker(std::int32_t p, const Vec3& dir, const std::vector<bool>& among) const {
+    std::atomic<std::int32_t> found{-1};
+    std::atomic<bool> blocked{false};
+    for_each_obstacle(
+        p, dir,
+        [&](std::int32_t q) {
+          if (!among[q]) return;
+          std::int32_t none = -1;
+          found.compare_exchange_strong(none, q);
+          blocked.store(true, std::memory_order_relaxed);
+        },
+        &blocked);
+    return found.load();
+  }
+
+  // Every part that part p leaving along dir runs into, ascending.
+  std::vector<std::int32_t> blockers(std::int32_t p, const Vec3& dir) const {
+    std::vector<std::atomic<bool>> hit(static_cast<std::size_t>(num_parts_));
+    for_each_obstacle(
+        p, dir, [&](std::int32_t q) { hit[q].store(true, std::memory_order_relaxed); }, nullptr);
+    std::vector<std::int32_t> out;
+    for (std::int32_t q = 0; q < num_parts_; ++q)
+      if (hit[q].load()) out.push_back(q);
+    return out;
+  }
+
+ private:
+  // Calls obstacle(q), from several threads, for each part q a ray from a sample of p along dir
+  // runs through; gives up early once *stop is set.
+  template <class Obstacle>
+  void for_each_obstacle(std::int32_t p, const Vec3& dir, const Obstacle& obstacle,
+                         const std::atomic<bool>* stop) const {
+    const std::vector<Vec3>& samples = samples_[p];
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, samples.size(), 256),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                        std::vector<std::uint64_t> hits;
+                        std::vector<Crossing> crossings;
+                        std::vector<std::int32_t> entered_at(num_parts_, -1), found;
+                        for (std::size_t s = range.begin(); s != range.end(); ++s) {
+                          if (stop && stop->load(std::memory_order_relaxed)) return;
+                          scene_.crossings(samples[s], dir, hits, crossings);
+                          const Vec3& origin = samples[s];
+                          // The middle first (usually the deepest point of a way through), then
+                          // every half tolerance, as `dhfcast check` steps.
+                          auto deep = [&](std::int32_t q, double t_in, double t_out) {
+                            if (tolerance_mm_ == 0.0) return true;
+                            auto far = [&](double t) {
+                              return !scene_.near(q, origin + t * dir, tolerance_mm_);
+                            };
+                            if (far(0.5 * (t_in + t_out))) return true;
+                            for (double t = t_in + tolerance_mm_; t < t_out - tolerance_mm_;
+                                 t += 0.5 * tolerance_mm_)
+                              if (far(t)) return true;
+                            return false;
+                          };
+                          mark_obstacles(crossings, p, tolerance_mm_, deep, entered_at, found);
+                          for (const std::int32_t q : found) obstacle(q);
+                        }
+                      });
+  }
+
+  PartScene scene_;
+  std::int32_t num_parts_;
+  double tolerance_mm_;
+  std::vector<std::vector<Vec3>> samples_;  // per part
+};
+
 }  // namespace
 
-AssemblyPlan plan_assembly(const TetMesh& tets, const std::vector<Part>& parts,
-                           double tolerance_mm) {
+std::vector<std::vector<Vec3>> assembly_samples(const std::vector<Part>& parts) {
+  constexpr double kSpacing = 0.01;  // of the parts' bounding-box diagonal
+  constexpr double kInset = 1e-5;    // likewise: well above float precision
+  Box3 box{Vec3::Constant(INFINITY), Vec3::Constant(-INFINITY)};
+  for (const Part& part : parts)
+    for (const Vec3& v : part.mesh.vertices) {
+      box.min = box.min.cwiseMin(v);
+      box.max = box.max.cwiseMax(v);
+    }
+  const double size = std::max(parts.empty() ? 1.0 : box.diagonal(), 1e-9);
+  std::vector<std::vector<Vec3>> samples;
+  for (const Part& part : parts)
+    samples.push_back(boundary_samples(part.mesh, kSpacing * size, kInset * size));
+  return samples;
+}
+
+AssemblyPlan plan_assembly(const std::vector<Part>& parts,
+                           const std::vector<Vec3>& extra_directions, double tolerance_mm) {
   if (!(tolerance_mm >= 0.0) || !std::isfinite(tolerance_mm))
     throw Error(ErrorCode::InvalidOptions, "assembly tolerance_mm must be >= 0");
   const std::int32_t n = static_cast<std::int32_t>(parts.size());
-  std::vector<std::int32_t> part_of(tets.tets.size(), -1);
-  for (std::int32_t p = 0; p < n; ++p) {
+  for (std::int32_t p = 0; p < n; ++p)
     if (parts[p].id != p) throw Error(ErrorCode::Internal, "parts: part ids must be 0..n-1");
-    for (const std::int32_t t : parts[p].tets) part_of[t] = p;
-  }
-  if (tets.neighbors.size() != tets.tets.size())
-    throw Error(ErrorCode::Internal, "parts: the tet mesh has no adjacency");
 
-  // --- 1. blocking relation: rays from inside each part along +d and along -d ---
-  // A part that is a DHF along d is one along -d too, and its mold does not care which way d
-  // points, so a part may also go in and out along -d: the planner picks the sign.
   AssemblyPlan plan;
+  plan.removal.resize(n);
   plan.blocks.assign(n, {});
-  std::vector<std::vector<std::int32_t>> blocks_reversed(n);
-  if (n > 0) {
-    const PartScene scene(parts);
-    const std::vector<Sample> samples = part_samples(tets, parts, part_of);
-    // Each thread gathers (sign, blocked, blocker) triples; sorted and deduplicated afterwards,
-    // they do not depend on the thread schedule.
-    tbb::enumerable_thread_specific<std::vector<std::uint64_t>> pairs;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, samples.size(), 256),
-                      [&](const tbb::blocked_range<std::size_t>& range) {
-                        std::vector<std::uint64_t>& mine = pairs.local();
-                        std::vector<std::uint64_t> hits;
-                        std::vector<Crossing> crossings;
-                        std::vector<std::int32_t> entered_at(n, -1), found;
-                        for (std::size_t s = range.begin(); s != range.end(); ++s) {
-                          const Sample& sample = samples[s];
-                          for (const std::uint64_t reversed : {0u, 1u}) {
-                            const Vec3& d = parts[sample.part].direction;
-                            scene.crossings(sample.point, reversed ? Vec3(-d) : d, hits,
-                                            crossings);
-                            mark_obstacles(crossings, sample.part, tolerance_mm, entered_at,
-                                           found);
-                            for (const std::int32_t a : found)
-                              mine.push_back((reversed << 62) |
-                                             (std::uint64_t(sample.part) << 31) |
-                                             std::uint32_t(a));
-                          }
-                        }
-                      });
-    std::vector<std::uint64_t> all;
-    for (const auto& mine : pairs) all.insert(all.end(), mine.begin(), mine.end());
-    std::sort(all.begin(), all.end());
-    all.erase(std::unique(all.begin(), all.end()), all.end());
-    for (const std::uint64_t triple : all) {
-      const auto blocked = static_cast<std::int32_t>((triple >> 31) & 0x7FFFFFFFu);
-      const auto blocker = static_cast<std::int32_t>(triple & 0x7FFFFFFFu);
-      (triple >> 62 ? blocks_reversed : plan.blocks)[blocked].push_back(blocker);
-    }
-  }
-
-  // --- 2. disassembly: take out the smallest-id part that no remaining part blocks, along +d
-  // if it can, else along -d. Taking a part out never blocks another, so this greedy order
-  // finds a complete order whenever one exists. ---
+  const Collisions collisions(parts, tolerance_mm);
+  // --- disassembly: take out the smallest-id part that no remaining part blocks along its own
+  // +-d; only when there is none, along the extra directions. A move once blocked by a part
+  // stays blocked while that part remains: each (part, direction) keeps the blocker it found. ---
+  const std::size_t num_directions = 2 + extra_directions.size();
+  std::vector<std::vector<std::int32_t>> known_blocker(
+      n, std::vector<std::int32_t>(num_directions, -1));
+  auto direction = [&](std::int32_t p, std::size_t k) {
+    return k < 2 ? (k == 0 ? parts[p].direction : Vec3(-parts[p].direction))
+                 : extra_directions[k - 2];
+  };
   std::vector<bool> remaining(n, true);
   std::vector<std::int32_t> removed;
-  plan.reversed.assign(n, false);
-  auto free_of = [&](const std::vector<std::int32_t>& blockers) {
-    return std::none_of(blockers.begin(), blockers.end(),
-                        [&](std::int32_t q) { return remaining[q]; });
-  };
   for (bool progress = true; progress;) {
     progress = false;
-    for (std::int32_t p = 0; p < n && !progress; ++p) {
-      if (!remaining[p]) continue;
-      const bool forward = free_of(plan.blocks[p]);
-      if (forward || free_of(blocks_reversed[p])) {
-        if (!forward) {
-          plan.reversed[p] = true;
-          std::swap(plan.blocks[p], blocks_reversed[p]);
+    for (const bool own : {true, false}) {
+      for (std::int32_t p = 0; p < n && !progress; ++p) {
+        if (!remaining[p]) continue;
+        for (std::size_t k = own ? 0 : 2; k < (own ? 2 : num_directions); ++k) {
+          // The extra directions may repeat the part's own, just found blocked.
+          const Vec3 dir = direction(p, k);
+          if (k >= 2 && (dir == parts[p].direction || dir == -parts[p].direction)) continue;
+          std::int32_t& known = known_blocker[p][k];
+          if (known >= 0 && remaining[known]) continue;
+          known = collisions.blocker(p, dir, remaining);
+          if (known >= 0) continue;
+          plan.removal[p] = dir;
+          remaining[p] = false;
+          removed.push_back(p);
+          progress = true;
+          break;
         }
-        remaining[p] = false;
-        removed.push_back(p);
-        progress = true;
       }
+      if (progress) break;
     }
+  }
+  for (std::int32_t p = 0; p < n; ++p) {
+    if (remaining[p]) plan.removal[p] = parts[p].direction;
+    plan.blocks[p] = collisions.blockers(p, plan.removal[p]);
   }
   plan.found = static_cast<std::int32_t>(removed.size()) == n;
   plan.order.assign(removed.rbegin(), removed.rend());

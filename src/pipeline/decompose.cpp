@@ -12,6 +12,9 @@ namespace dhfcast {
 
 namespace {
 
+// Directions over the sphere a part may leave along when its own +-d are blocked.
+constexpr std::int32_t kAssemblyDirections = 64;
+
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
@@ -85,14 +88,6 @@ void merge_into_neighbours(const TetMesh& tets, std::vector<std::int32_t>& label
         }
     }
   }
-}
-
-double mean_edge_length(const TetMesh& tets) {
-  double sum = 0.0;
-  for (const Tet& k : tets.tets)
-    for (int i = 0; i < 4; ++i)
-      for (int j = i + 1; j < 4; ++j) sum += (tets.vertices[k[i]] - tets.vertices[k[j]]).norm();
-  return tets.tets.empty() ? 0.0 : sum / (6.0 * static_cast<double>(tets.tets.size()));
 }
 
 }  // namespace
@@ -216,12 +211,16 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   d.smoothness = interface_smoothness(d.parts);
   d.outer_smoothness = outer_surface_smoothness(d.parts);
   if (opts.exact_outer_surface) d.solid_cut = cut_parts_from_solid(solid, d.parts);
-  // The parts are unions of tets, so neighbours interlock along their interfaces by up to about
-  // one tet: contact that shallow is the interfaces' roughness, not a blocking part.
-  d.assembly_tolerance_mm = opts.access.epsilon_mm + mean_edge_length(d.tets);
-  d.assembly = plan_assembly(d.tets, d.parts, d.assembly_tolerance_mm);
-  for (Part& p : d.parts)
-    if (d.assembly.reversed[p.id]) p.direction = -p.direction;
+  // A part leaves along its own +-d when it can, else along another part's (interfaces follow
+  // them) or one of a coarse set of directions over the sphere. A move counts as blocked when it
+  // goes deeper than epsilon / 2 into another part: half what `dhfcast check` allows, as check
+  // draws other points of the surface.
+  d.assembly_tolerance_mm = 0.5 * opts.access.epsilon_mm;
+  std::vector<Vec3> removal_directions;
+  for (const Part& p : d.parts)
+    removal_directions.insert(removal_directions.end(), {p.direction, -p.direction});
+  for (const Vec3& v : fibonacci_directions(kAssemblyDirections)) removal_directions.push_back(v);
+  d.assembly = plan_assembly(d.parts, removal_directions, d.assembly_tolerance_mm);
   report("parts", 1.0);
   d.timings.parts = seconds_since(t0);
 

@@ -132,6 +132,7 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
     ordered_json jp = {{"id", p.id},
                        {"mesh", part_file(p.id)},
                        {"direction", vec(p.direction)},
+                       {"removal_direction", vec(d.assembly.removal.at(p.id))},
                        {"volume_mm3", p.volume_mm3},
                        {"tets", p.tets.size()},
                        {"region", p.region},
