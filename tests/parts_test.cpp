@@ -492,6 +492,40 @@ TEST(AbsorbSandwichedTets, ScrambledLabelsEndWithoutSandwichesOnAnyThreadCount) 
   EXPECT_EQ(repair_one.moved_tets, repair.moved_tets);
 }
 
+// Scrambled blocks where each block allows its own label and a pseudo-random choice of the others:
+// settling the parts one at a time leaves tets between two tets of a part, of a settled part
+// whose column goes on beyond them, and only moving them with that column's shorter tail clears
+// them.
+TEST(AbsorbSandwichedTets, TetsLeftBetweenAPartsTetsGoToItWithTheirColumnsTail) {
+  const Grid g = make_grid(8, 8, 8, 5.0);
+  const std::vector<std::vector<Vec3>> dirs{{kUp, kSide, Vec3(0.02, -1.0, 0.05).normalized()}};
+  const auto blocks = scrambled_labels(64, 3, 33);
+  const auto extra = scrambled_labels(64 * 3, 3, 1033);
+  const auto block_of =
+      per_cell(g, [](const Cell& c) { return ((c[2] / 2) * 4 + c[1] / 2) * 4 + c[0] / 2; });
+  const TetAllowsLabel allows = [&](std::int32_t t, std::int32_t, std::int32_t l) {
+    const std::int32_t b = block_of[t];
+    return blocks[b] == l || extra[3 * b + l] != 0;
+  };
+  std::vector<std::int32_t> label;
+  for (std::int32_t b : block_of) label.push_back(blocks[b]);
+  const auto start = label;
+  const std::size_t parts_before = extract_parts(g.mesh, start, zeros(g), dirs).size();
+  const SandwichRepair repair = absorb_sandwiched_tets(g.mesh, label, zeros(g), dirs, allows);
+  EXPECT_TRUE(repair.converged);
+  EXPECT_EQ(repair.stuck_tets, 0);
+  EXPECT_EQ(repair.worst_share, 0.0);
+  EXPECT_EQ(repair.forced_tets, 0);
+  for (std::size_t t = 0; t < label.size(); ++t)
+    EXPECT_TRUE(allows(static_cast<std::int32_t>(t), 0, label[t])) << "tet " << t;
+  EXPECT_LE(extract_parts(g.mesh, label, zeros(g), dirs).size(), parts_before);
+
+  tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+  auto again = start;
+  absorb_sandwiched_tets(g.mesh, again, zeros(g), dirs, allows);
+  EXPECT_EQ(again, label);
+}
+
 // --- parts that touch themselves ---
 
 // Positions where some part's mesh has two vertices: where extract_parts() cut a part apart

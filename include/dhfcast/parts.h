@@ -37,7 +37,8 @@ std::vector<Part> extract_parts(const TetMesh& tets, const std::vector<std::int3
 
 // Options for absorb_sandwiched_tets().
 struct SandwichOptions {
-  std::int32_t max_rounds = 40;  // rounds per part (each fills or cuts); 0: only count
+  std::int32_t max_rounds = 40;  // rounds per part (each fills or cuts), and polishing
+                                 // rounds; 0: only count
   // A piece a part falls into that is smaller than this share of the solid's volume goes to a
   // neighbouring part even where that part's direction does not allow all of it: a part that
   // small is not worth a mold of its own.
@@ -93,6 +94,13 @@ using TetAllowsLabel =
 // tets) to the neighbour whose direction allows most of it.
 // Which parts settle first matters: largest first and smallest first are both tried, and the
 // labeling kept, among those and the start, has the smallest worst_share, then fewest parts.
+// That labeling is then polished: tets still between two tets of a part P along P's direction,
+// that P allows, go to P together with the shorter tail of their own part's column along its
+// direction where P allows it (so that part loses a column end, not a middle), one
+// face-connected group at a time, when that leaves fewer tets sandwiched in the two parts near
+// the group and both stay connected; rounds repeat until no group moves (at most
+// opts.max_rounds). The polished labeling is kept when its worst_share is no larger and it has
+// no more parts.
 // Only tets of the same region are exchanged.
 // Deterministic: the result does not depend on the thread count.
 // Pre: tets has adjacency; label/region as for extract_parts(). Throws Error{InvalidOptions}
