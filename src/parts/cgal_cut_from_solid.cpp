@@ -406,25 +406,36 @@ std::optional<std::pair<TriMesh, std::vector<std::int32_t>>> intersect(const Tri
   }
   auto out_origin = out.add_property_map<Face, std::int32_t>("f:origin", kFromSolid).first;
   // Points the cut put within a float step of each other become one, and the needle triangles
-  // between them go (in a neighbour too, which rounds the same points).
-  TriMesh mesh;
-  std::vector<std::int32_t> origin;
-  std::map<ExactMesh::Vertex_index, std::int32_t> index;
+  // between them go (in a neighbour too, which rounds the same points). The order CGAL lists
+  // faces and their corners in can follow its threaded search for intersections, so the part
+  // is written in a canonical order: vertices by position, triangles by corners, each from its
+  // lowest corner. That makes it the same on any thread count.
   std::map<Vec3, std::int32_t, VecLess> at;
+  std::map<ExactMesh::Vertex_index, Vec3> position;
   for (ExactMesh::Vertex_index v : out.vertices()) {
-    const Vec3 p = rounded(out.point(v));
-    const auto [it, added] = at.emplace(p, static_cast<std::int32_t>(mesh.vertices.size()));
-    if (added) mesh.vertices.push_back(p);
-    index[v] = it->second;
+    position[v] = rounded(out.point(v));
+    at.emplace(position[v], 0);
   }
+  TriMesh mesh;
+  for (auto& [p, i] : at) {
+    i = static_cast<std::int32_t>(mesh.vertices.size());
+    mesh.vertices.push_back(p);
+  }
+  std::vector<std::pair<Tri, std::int32_t>> faces;  // with their origin
   for (Face f : out.faces()) {
     Tri t{};
     int k = 0;
     for (ExactMesh::Vertex_index v : CGAL::vertices_around_face(out.halfedge(f), out))
-      if (k < 3) t[k++] = index[v];
+      if (k < 3) t[k++] = at.at(position.at(v));
     if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
+    std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
+    faces.emplace_back(t, out_origin[f]);
+  }
+  std::sort(faces.begin(), faces.end());
+  std::vector<std::int32_t> origin;
+  for (const auto& [t, o] : faces) {
     mesh.triangles.push_back(t);
-    origin.push_back(out_origin[f]);
+    origin.push_back(o);
   }
   return std::make_pair(std::move(mesh), std::move(origin));
 }
