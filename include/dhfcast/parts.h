@@ -197,10 +197,11 @@ struct SolidCut {
 // SolidCut::filled_dents, or else counted in SolidCut::uncovered_triangles). Shared vertices move
 // alike in every part. Interfaces keep their triangles, cut where they meet the input surface;
 // neighbouring parts are cut by the same exact curve, so rounded to double they still share
-// their vertices and triangles. A part that intersects itself, or whose region CGAL rejects, is
+// their vertices and triangles (except where a filled dent meets a neighbour: the same surface,
+// triangulated apart). A part that intersects itself, or whose region CGAL rejects, is
 // left as it is, marked in SolidCut::part_cut and SolidCut::problem. A part that is empty once
 // cut is dropped (see SolidCut::dropped_parts) and the parts renumbered. triangle_neighbor and
-// volume_mm3 are updated. Deterministic.
+// volume_mm3 are updated. Deterministic, in a canonical vertex and triangle order.
 // Pre: `parts` is extract_parts()/smooth_interfaces() output of a tet mesh of `solid`.
 SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts);
 
