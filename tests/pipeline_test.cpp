@@ -264,9 +264,9 @@ TEST(Pipeline, SpoolPartsComeApartAlongEachOthersDirections) {
   }
 }
 
-// Rockerarm at the default settings: its parts have no order in which every move stays ε/2
-// clear of the other parts, but one within check's own limit, which check confirms.
-TEST(Pipeline, RockerarmPartsAssembleWithinTheCheckersLimit) {
+// Rockerarm at the default settings: its parts have an order (found with the planner's margin
+// below check's own limit, shrunk if need be), and check confirms it.
+TEST(Pipeline, RockerarmPartsAssembleAndCheckConfirms) {
   const std::string path = test::extra_model("rockerarm.stl");
   if (path.empty()) GTEST_SKIP() << "extended models absent (set DHFCAST_MODELS_DIR)";
   const TriMesh input = test::load_scaled(path, 0.0);
