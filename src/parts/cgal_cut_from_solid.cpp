@@ -129,18 +129,15 @@ LengthMap local_reach(const TriMesh& solid, const std::vector<std::array<Vec3, 3
 
 // The input surface's normal at the point nearest to each outer vertex, interpolated from its
 // vertex normals: a smooth direction field even where the tet mesh's boundary is creased.
-PointMap input_normals(const TriMesh& solid, const std::vector<std::array<Vec3, 3>>& outer) {
+PointMap input_normals(const TriMesh& solid, const Triangles& triangles, const Tree& tree,
+                       const std::vector<std::array<Vec3, 3>>& outer) {
   std::vector<Vec3> vertex_normal(solid.vertices.size(), Vec3::Zero());
-  Triangles triangles;
   for (const Tri& t : solid.triangles) {
     const Vec3 &a = solid.vertices[t[0]], &b = solid.vertices[t[1]], &c = solid.vertices[t[2]];
     const Vec3 n = (b - a).cross(c - a);  // area-weighted
     for (std::int32_t v : t) vertex_normal[v] += n;
-    triangles.emplace_back(point(a), point(b), point(c));
   }
   for (Vec3& n : vertex_normal) n.normalize();
-  Tree tree(triangles.begin(), triangles.end());
-  tree.accelerate_distance_queries();
   std::vector<Vec3> corners;
   for (const auto& t : outer) corners.insert(corners.end(), t.begin(), t.end());
   std::sort(corners.begin(), corners.end(), VecLess());
@@ -339,12 +336,16 @@ Region moved_region(const Part& part, const PointMap& dirs, const LengthMap& pus
   return kept;
 }
 
-// The origin of each region face for the cut: the part across it, or kFromSolid - 1 - t for an
+// The origin of the region's outer face t, below kFromSolid, and back.
+std::int32_t outer_face_origin(std::int32_t t) { return kFromSolid - 1 - t; }
+std::int32_t outer_face_of(std::int32_t origin) { return kFromSolid - 1 - origin; }
+
+// The origin of each region face for the cut: the part across it, or outer_face_origin(t) for an
 // outer face t.
 std::vector<std::int32_t> origins(const Region& r) {
   std::vector<std::int32_t> origin = r.neighbor;
   for (std::size_t t = 0; t < origin.size(); ++t)
-    if (origin[t] < 0) origin[t] = kFromSolid - 1 - static_cast<std::int32_t>(t);
+    if (origin[t] < 0) origin[t] = outer_face_origin(static_cast<std::int32_t>(t));
   return origin;
 }
 
@@ -504,7 +505,7 @@ std::vector<std::pair<std::vector<std::int32_t>, double>> dents(std::size_t i, C
         j >= 0) {
       origin[f] = j;
     } else {
-      double& slot = deep[kFromSolid - 1 - origin[f]];
+      double& slot = deep[outer_face_of(origin[f])];
       slot = std::max(slot, d);
     }
   }
@@ -563,7 +564,7 @@ std::optional<ExactMesh> fill_dents(
     CGAL::convex_hull_3(corners.begin(), corners.end(), hull);
     if (!CGAL::is_closed(hull) || hull.number_of_faces() < 4) continue;  // flat: no volume
     auto hull_origin = hull.add_property_map<Face, std::int32_t>("f:origin").first;
-    for (Face f : hull.faces()) hull_origin[f] = kFromSolid - 1 - triangles.front();
+    for (Face f : hull.faces()) hull_origin[f] = outer_face_origin(triangles.front());
     for (std::size_t j = 0; j < regions.size(); ++j) {
       const Box3 other_box = bounding_box(regions[j].mesh.vertices);
       if (j == i || !usable[j] || (box.max.array() < other_box.min.array()).any() ||
@@ -590,7 +591,14 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   cut.part_cut.assign(parts.size(), false);
   cut.problem.assign(parts.size(), "");
   const std::vector<std::array<Vec3, 3>> outer = outer_triangles(parts);
-  const PointMap dirs = input_normals(solid, outer);
+  // The input surface, for nearest points (normals) and depths (dents).
+  Triangles solid_triangles;
+  for (const Tri& t : solid.triangles)
+    solid_triangles.emplace_back(point(solid.vertices[t[0]]), point(solid.vertices[t[1]]),
+                                 point(solid.vertices[t[2]]));
+  Tree surface(solid_triangles.begin(), solid_triangles.end());
+  surface.accelerate_distance_queries();
+  const PointMap dirs = input_normals(solid, solid_triangles, surface, outer);
   // Each outer vertex moves out twice as far as the input sticks out near it, plus a margin so
   // that no face of a region lies on the input surface.
   const double diagonal = bounding_box(solid.vertices).diagonal();
@@ -671,7 +679,7 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
       if (results[i])
         for (std::int32_t o : results[i]->second)
           if (o < kFromSolid)
-            for (std::int32_t v : regions[i].mesh.triangles[kFromSolid - 1 - o])
+            for (std::int32_t v : regions[i].mesh.triangles[outer_face_of(o)])
               if (const Vec3& p = regions[i].source[v]; push.contains(p) && !halved.contains(p))
                 grow.insert(p);
     if (grow.empty() || pass == kGrowths) break;
@@ -684,12 +692,6 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   // Dents left where a fold kept the corners from moving far enough: each region grows over its
   // own, by convex hulls reaching further out each time, until its part covers the solid there.
   {
-    Triangles triangles;
-    for (const Tri& t : solid.triangles)
-      triangles.emplace_back(point(solid.vertices[t[0]]), point(solid.vertices[t[1]]),
-                             point(solid.vertices[t[2]]));
-    Tree surface(triangles.begin(), triangles.end());
-    surface.accelerate_distance_queries();
     const double depth = kDentDepth * diagonal;
     std::vector<char> usable(n);
     for (std::size_t i = 0; i < n; ++i) usable[i] = own[i].empty() && !folds[i];
