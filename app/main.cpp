@@ -212,6 +212,9 @@ int main(int argc, char** argv) {
   dec->add_option("--lambda", o.segment.lambda, "Label cost weight")->capture_default_str();
   dec->add_option("--restarts", o.segment.restarts, "Randomized graph-cut runs")
       ->capture_default_str();
+  dec->add_option("--candidates", o.candidates,
+                  "Candidate labelings repaired; the one closest to double height fields is kept")
+      ->capture_default_str();
   dec->add_option("--seed", o.segment.seed, "Random seed")->capture_default_str();
   dec->add_option("--smoothing", o.smoothing.iterations,
                   "Interface smoothing steps (0: keep the tet faces)")

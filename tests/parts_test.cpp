@@ -363,6 +363,7 @@ TEST(AbsorbSandwichedTets, TongueInsideAnotherPartsColumnJoinsIt) {
   EXPECT_EQ(repair.moved_tets, tongue_tets);
   EXPECT_EQ(repair.stuck_tets, 0);
   EXPECT_EQ(repair.worst_share, 0.0);
+  EXPECT_EQ(repair.parts, 1);  // the tongue's part is gone
   EXPECT_EQ(repair.rounds, 1);
   EXPECT_EQ(std::count(label.begin(), label.end(), 1), 0);
   ASSERT_EQ(repair.moves.size(), 1u);
@@ -388,6 +389,7 @@ TEST(AbsorbSandwichedTets, LayerThatSplitsAPartInTwoStays) {
   const SandwichRepair repair =
       absorb_sandwiched_tets(g.mesh, label, zeros(g), {{kUp, kSide}}, kAllowAll);
   EXPECT_TRUE(repair.converged);
+  EXPECT_EQ(repair.parts, 3);  // bottom, layers, top
   EXPECT_EQ(repair.moved_tets, 0);
   EXPECT_EQ(repair.rounds, 0);
   EXPECT_TRUE(repair.moves.empty());
@@ -408,6 +410,7 @@ TEST(AbsorbSandwichedTets, TetsTheDirectionDoesNotAllowStayAndAreCounted) {
   // The whole tongue lies within part 0: its share of part 0's volume (cells of nearly equal
   // volume, 32 of the 184 cells that are part 0's).
   EXPECT_NEAR(repair.worst_share, 32.0 / 184.0, 0.01);
+  EXPECT_EQ(repair.parts, 2);
   EXPECT_EQ(label, before);
 }
 

@@ -65,6 +65,7 @@ struct SandwichRepair {
   // of one part, as a share of that part's volume (the part is not a DHF there).
   std::int32_t stuck_tets = 0;
   double worst_share = 0.0;
+  std::int32_t parts = 0;  // face-connected components of equal (region, label) in it
   // Pieces a part fell into when it lost tets that went whole to a neighbour, and their tets;
   // of those, the tets the neighbour's direction does not allow (tiny pieces only).
   std::int32_t merged_pieces = 0, merged_tets = 0, forced_tets = 0;

@@ -22,6 +22,10 @@ struct DecomposeOptions {
   AccessibilityOptions access;
   SegmentOptions segment;
   SandwichOptions sandwich;
+  // Candidate labelings of the segmentation that go through the sandwich repair, those the
+  // segmentation ranks first; the one closest to double height fields is kept (1: the
+  // segmentation's own choice).
+  std::int32_t candidates = 10;
   SmoothingOptions smoothing;
   // Cut each part from the exact input solid (cut_parts_from_solid), so its outer surface is the
   // input surface rather than the tet mesh's boundary.
@@ -31,7 +35,8 @@ struct DecomposeOptions {
   MoldOptions molds;
 };
 
-// Wall-clock seconds per stage.
+// Wall-clock seconds per stage. Segmentation includes the sandwich repair of every candidate
+// labeling, which chooses the one kept.
 struct StageTimes {
   double tetrahedralize = 0, accessibility = 0, segmentation = 0, parts = 0, molds = 0;
 };
@@ -50,9 +55,11 @@ struct Decomposition {
   TetMesh tets;
   std::vector<Vec3> directions;
   AccessibilityField access;         // of the whole solid
-  Labeling labeling;                 // of the whole solid (label -1: inaccessible)
+  Labeling labeling;  // of the whole solid (label -1: inaccessible); the candidate kept is the
+                      // one closest to double height fields after the sandwich repair
   std::vector<InaccessibleRegion> inaccessible_regions;
-  SandwichRepair sandwich;  // tets moved into the part they were sandwiched in (label level)
+  SandwichRepair sandwich;  // tets moved into the part they were sandwiched in (label level),
+                            // in the candidate kept
   ManifoldRepair manifold;  // tets moved so that no part touches itself (label level)
   SolidCut solid_cut;       // parts cut from the exact input solid (empty when not asked)
   std::vector<Part> parts;

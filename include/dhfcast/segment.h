@@ -19,6 +19,14 @@ struct SegmentOptions {
   std::uint32_t seed = 1;      // seeds the restarts; same seed, same result on any thread count
 };
 
+// One candidate labeling of segment(), its parts already reduced.
+struct LabelingCandidate {
+  std::vector<std::int32_t> label;  // as Labeling::label
+  std::int32_t parts = 0;           // face-connected components of equal label
+  double volume_variance_mm6 = 0.0;
+  double energy = 0.0;  // eq. 1
+};
+
 // The chosen labeling.
 struct Labeling {
   // label[t]: index of t's direction, or -1 for a tet that is feasible for no direction.
@@ -31,6 +39,9 @@ struct Labeling {
                                       // feasibility sets
   std::int32_t best_restart = 0;  // the chosen candidate: r < restarts is randomized restart r,
                                   // restarts + c the c-th covering candidate (see segment())
+  // Every candidate, in that numbering, for a caller that chooses by what comes later (how far
+  // each is from double height fields once repaired, say).
+  std::vector<LabelingCandidate> candidates;
 };
 
 // Minimizes eq. 1: smooth data cost (eq. 3) + face-area and seam smoothness + label cost, by
@@ -41,7 +52,8 @@ struct Labeling {
 // neighbours' infeasible regions lowers their data cost), so each candidate's part count is then
 // lowered by moves that keep every tet feasible (merging parts, sharing a part among its
 // neighbours, joining two parts of one label). The best candidate has the fewest parts, ties
-// broken by the smallest variance of part volumes, then by energy, then by index. Labels are
+// broken by the smallest variance of part volumes, then by energy, then by index (decompose()
+// chooses again among all candidates, by how close to double height fields each comes). Labels are
 // the candidate directions only: a direction whose feasible set equals a lower-indexed one's,
 // or lies strictly inside another's, can be replaced by it without raising the energy, and is
 // dropped. Tets feasible for no direction take no part in eq. 1.

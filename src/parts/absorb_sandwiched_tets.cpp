@@ -566,6 +566,7 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
   }
   repair.stuck_tets = best.tets;
   repair.worst_share = best.worst_share;
+  repair.parts = best.parts;
   repair.converged = best.tets == 0;
   std::map<std::tuple<std::int32_t, std::int32_t, std::int32_t>, SandwichMove> moves;
   for (std::int32_t t = 0; t < n; ++t) {

@@ -1,8 +1,12 @@
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <mutex>
 #include <string>
+#include <tuple>
 
 #include "dhfcast/directions.h"
 #include "dhfcast/error.h"
@@ -90,6 +94,44 @@ void merge_into_neighbours(const TetMesh& tets, std::vector<std::int32_t>& label
   }
 }
 
+// A candidate labeling of the segmentation after the sandwich repair.
+struct RepairedCandidate {
+  std::size_t index = 0;  // in Labeling::candidates
+  std::vector<std::int32_t> label, region;
+  SandwichRepair repair;
+};
+
+// Below this share of sandwiched volume in its worst part, a labeling counts as a set of double
+// height fields: smoothing the interfaces and cutting the parts from the solid then leave about
+// no line that meets a part twice.
+constexpr double kCleanShare = 1e-3;
+
+// The candidate to keep: those whose worst part has at most twice the smallest share of
+// sandwiched volume found (or kCleanShare, if larger) compete; among them the fewest parts win,
+// then the smaller share, then the segmentation's own order (smaller variance of part volumes,
+// then lower energy, then index).
+RepairedCandidate& pick_candidate(std::vector<RepairedCandidate>& repaired,
+                                  const std::vector<LabelingCandidate>& candidates) {
+  double least = INFINITY;
+  for (const RepairedCandidate& r : repaired) least = std::min(least, r.repair.worst_share);
+  const double cap = std::max(kCleanShare, 2 * least);
+  const auto key = [&](const RepairedCandidate& r) {
+    const LabelingCandidate& c = candidates[r.index];
+    return std::make_tuple(r.repair.worst_share > cap, r.repair.parts, r.repair.worst_share,
+                           c.volume_variance_mm6, c.energy, r.index);
+  };
+  return *std::min_element(repaired.begin(), repaired.end(),
+                           [&](const auto& a, const auto& b) { return key(a) < key(b); });
+}
+
+// Distinct directions a labeling uses.
+std::int32_t count_labels(std::vector<std::int32_t> label) {
+  std::sort(label.begin(), label.end());
+  label.erase(std::unique(label.begin(), label.end()), label.end());
+  return static_cast<std::int32_t>(std::count_if(label.begin(), label.end(),
+                                                 [](std::int32_t l) { return l >= 0; }));
+}
+
 }  // namespace
 
 void validate_options(const DecomposeOptions& o) {
@@ -111,6 +153,7 @@ void validate_options(const DecomposeOptions& o) {
           "sandwich max_rounds must be >= 0 and tiny_piece_share in [0, 1]");
   require(o.segment.restarts >= 1 && o.segment.restarts <= 1000,
           "--restarts must be between 1 and 1000");
+  require(o.candidates >= 1 && o.candidates <= 1000, "--candidates must be between 1 and 1000");
   if (o.make_molds) validate_mold_options(o.molds);
 }
 
@@ -145,15 +188,20 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   // --- 3. segmentation ---
   t0 = Clock::now();
   report("segmentation", 0.0);
-  d.labeling = segment(d.tets, d.access, opts.segment, inner("segmentation"));
-  std::vector<std::int32_t> label = d.labeling.label;
-  std::vector<std::int32_t> region(label.size(), 0);
+  // The candidates' repair below takes longer than finding them: half the progress each.
+  const auto segmentation_progress = inner("segmentation");
+  d.labeling = segment(d.tets, d.access, opts.segment,
+                       [&](double f) { segmentation_progress(0.5 * f); });
+  const std::size_t num_tets = d.tets.tets.size();
   std::vector<std::vector<Vec3>> region_directions{d.directions};
 
   // Tets feasible for no direction (enclosed volumes, paper §6): each connected region of them
   // is decomposed again on its own, with accessibility taken from its own boundary. The parts
-  // it gives are DHFs; whether they can be put in place is left to the assembly planner.
-  for (const std::vector<std::int32_t>& component : inaccessible_components(d.tets, label)) {
+  // it gives are DHFs; whether they can be put in place is left to the assembly planner. These
+  // tets are the same in every candidate labeling.
+  std::vector<std::int32_t> region(num_tets, 0), region_label(num_tets, -1);
+  for (const std::vector<std::int32_t>& component :
+       inaccessible_components(d.tets, d.labeling.label)) {
     InaccessibleRegion info;
     info.id = static_cast<std::int32_t>(region_directions.size());
     info.tets = static_cast<std::int32_t>(component.size());
@@ -167,31 +215,75 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
         compute_accessibility(shell.at(0).mesh, sub, d.directions, opts.access);
     const Labeling sub_labeling = segment(sub, sub_field, opts.segment);
     for (std::size_t i = 0; i < component.size(); ++i) {
-      label[component[i]] = sub_labeling.label[i];
+      region_label[component[i]] = sub_labeling.label[i];
       region[component[i]] = info.id;
       if (sub_labeling.label[i] < 0) ++info.still_inaccessible_tets;
     }
     region_directions.push_back(d.directions);
     d.inaccessible_regions.push_back(info);
   }
-  merge_into_neighbours(d.tets, label, region);
+
+  // Tets between two pieces of another part along its direction go to that part, so each part
+  // meets every line along its direction once (at the tets' resolution). Regions decomposed
+  // again keep no accessibility of their own here, so their tets never change label. This
+  // repair is run on every candidate labeling, and the one chosen is the one that comes out
+  // closest to double height fields (see pick_candidate()): fewer parts are worth little when
+  // one of them cannot be cast.
+  const TetAllowsLabel region_allows = [&](std::int32_t t, std::int32_t r, std::int32_t l) {
+    return r == 0 && d.access.feasible.get(t, l);
+  };
+  // The repair takes seconds per candidate: only the candidates the segmentation itself ranks
+  // first (fewest parts, most even volumes, lowest energy) are tried. On bunny, dragonstand,
+  // elephant and pinion the one kept ranked 2nd to 8th.
+  const std::vector<LabelingCandidate>& candidates = d.labeling.candidates;
+  std::vector<std::size_t> order(candidates.size());
+  for (std::size_t c = 0; c < order.size(); ++c) order[c] = c;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return std::make_tuple(candidates[a].parts, candidates[a].volume_variance_mm6,
+                           candidates[a].energy, a) <
+           std::make_tuple(candidates[b].parts, candidates[b].volume_variance_mm6,
+                           candidates[b].energy, b);
+  });
+  std::vector<std::size_t> distinct;  // the first candidate of each distinct labeling
+  for (std::size_t c : order)
+    if (distinct.size() < static_cast<std::size_t>(opts.candidates) &&
+        std::none_of(distinct.begin(), distinct.end(),
+                     [&](std::size_t e) { return candidates[e].label == candidates[c].label; }))
+      distinct.push_back(c);
+  std::vector<RepairedCandidate> repaired(distinct.size());
+  std::mutex progress_mutex;
+  std::size_t repairs_done = 0;
+  tbb::parallel_for(std::size_t{0}, distinct.size(), [&](std::size_t i) {
+    RepairedCandidate& r = repaired[i];
+    r.index = distinct[i];
+    r.label = candidates[r.index].label;
+    r.region = region;
+    for (std::size_t t = 0; t < num_tets; ++t)
+      if (region[t] > 0) r.label[t] = region_label[t];
+    merge_into_neighbours(d.tets, r.label, r.region);
+    if (std::find(r.label.begin(), r.label.end(), -1) != r.label.end())
+      throw Error(ErrorCode::Internal, "a tet region has no direction at all");
+    r.repair = absorb_sandwiched_tets(d.tets, r.label, r.region, region_directions, region_allows,
+                                      opts.sandwich);
+    const std::lock_guard lock(progress_mutex);
+    segmentation_progress(0.5 + 0.5 * double(++repairs_done) / double(distinct.size()));
+  });
+  RepairedCandidate& chosen = pick_candidate(repaired, candidates);
+  std::vector<std::int32_t> label = std::move(chosen.label);
+  region = std::move(chosen.region);
+  d.sandwich = std::move(chosen.repair);
+  const LabelingCandidate& candidate = candidates[chosen.index];
+  d.labeling.best_restart = static_cast<std::int32_t>(chosen.index);
+  d.labeling.energy = candidate.energy;
+  d.labeling.num_components = candidate.parts;
+  d.labeling.num_labels = count_labels(candidate.label);
+  d.labeling.label = candidate.label;
   report("segmentation", 1.0);
   d.timings.segmentation = seconds_since(t0);
 
   // --- 4. parts and assembly order ---
   t0 = Clock::now();
   report("parts", 0.0);
-  if (std::find(label.begin(), label.end(), -1) != label.end())
-    throw Error(ErrorCode::Internal, "a tet region has no direction at all");
-  // Tets between two pieces of another part along its direction go to that part, so each part
-  // meets every line along its direction once (at the tets' resolution). Regions decomposed
-  // again keep no accessibility of their own here, so their tets never change label.
-  d.sandwich = absorb_sandwiched_tets(
-      d.tets, label, region, region_directions,
-      [&](std::int32_t t, std::int32_t r, std::int32_t l) {
-        return r == 0 && d.access.feasible.get(t, l);
-      },
-      opts.sandwich);
   // A part whose tets meet only along an edge or at a vertex would touch itself there. Regions
   // decomposed again keep no accessibility here: their tets may take any label of the region.
   d.manifold = make_parts_manifold(

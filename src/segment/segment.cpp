@@ -315,7 +315,10 @@ Labeling segment(const TetMesh& tets, const AccessibilityField& field, const Seg
       best = r;
     }
   }
-  out.label = std::move(labels[best]);
+  out.label = labels[best];
+  for (std::size_t r = 0; r < candidates.size(); ++r)
+    out.candidates.push_back(
+        {std::move(labels[r]), stats[r].parts, stats[r].volume_variance_mm6, energy[r]});
   std::vector<std::int32_t> label_of_direction(field.feasible.num_directions(), -1);
   for (std::int32_t l = 0; l < num_labels; ++l) label_of_direction[dirs[l]] = l;
   std::vector<std::int32_t> node_labels(num_nodes);
