@@ -35,8 +35,8 @@ struct DecomposeOptions {
   MoldOptions molds;
 };
 
-// Wall-clock seconds per stage. Segmentation includes the sandwich repair of every candidate
-// labeling, which chooses the one kept.
+// Wall-clock seconds per stage. Segmentation includes the sandwich repair of the candidate
+// labelings tried (DecomposeOptions::candidates), which chooses the one kept.
 struct StageTimes {
   double tetrahedralize = 0, accessibility = 0, segmentation = 0, parts = 0, molds = 0;
 };

@@ -53,7 +53,8 @@ struct Labeling {
 // lowered by moves that keep every tet feasible (merging parts, sharing a part among its
 // neighbours, joining two parts of one label). The best candidate has the fewest parts, ties
 // broken by the smallest variance of part volumes, then by energy, then by index (decompose()
-// chooses again among all candidates, by how close to double height fields each comes). Labels are
+// chooses again among the first-ranked candidates, by how close to double height fields each
+// comes once repaired). Labels are
 // the candidate directions only: a direction whose feasible set equals a lower-indexed one's,
 // or lies strictly inside another's, can be replaced by it without raising the energy, and is
 // dropped. Tets feasible for no direction take no part in eq. 1.
