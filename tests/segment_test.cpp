@@ -225,6 +225,12 @@ TEST(Segment, TwoOverlappingHalvesMeetInTheMiddle) {
     return d == 0 ? p.x() < 24.0 : p.x() > 16.0;
   });
   const Labeling l = segment(bar, f, {.c_mm = 5.0, .restarts = 3});
+  // Every candidate is returned, ranked: fewest parts first, and the chosen one leads.
+  ASSERT_GE(l.candidates.size(), 3u);
+  EXPECT_EQ(l.candidates.front().label, l.label);
+  EXPECT_EQ(l.candidates.front().restart, l.best_restart);
+  for (std::size_t i = 1; i < l.candidates.size(); ++i)
+    EXPECT_LE(l.candidates[i - 1].parts, l.candidates[i].parts);
   EXPECT_EQ(l.num_components, 2);
   EXPECT_EQ(l.num_labels, 2);
   EXPECT_EQ(l.candidate_labels, 2);

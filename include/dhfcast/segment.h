@@ -22,6 +22,7 @@ struct SegmentOptions {
 // One candidate labeling of segment(), its parts already reduced.
 struct LabelingCandidate {
   std::vector<std::int32_t> label;  // as Labeling::label
+  std::int32_t restart = 0;         // its number, as Labeling::best_restart
   std::int32_t parts = 0;           // face-connected components of equal label
   double volume_variance_mm6 = 0.0;
   double energy = 0.0;  // eq. 1
@@ -39,8 +40,9 @@ struct Labeling {
                                       // feasibility sets
   std::int32_t best_restart = 0;  // the chosen candidate: r < restarts is randomized restart r,
                                   // restarts + c the c-th covering candidate (see segment())
-  // Every candidate, in that numbering, for a caller that chooses by what comes later (how far
-  // each is from double height fields once repaired, say).
+  // Every candidate, best first in segment()'s ranking (the chosen one is candidates[0]), for a
+  // caller that chooses by what comes later (how far each is from double height fields once
+  // repaired, say).
   std::vector<LabelingCandidate> candidates;
 };
 

@@ -96,7 +96,7 @@ void merge_into_neighbours(const TetMesh& tets, std::vector<std::int32_t>& label
 
 // A candidate labeling of the segmentation after the sandwich repair.
 struct RepairedCandidate {
-  std::size_t index = 0;  // in Labeling::candidates
+  std::size_t index = 0;  // in Labeling::candidates (the segmentation's ranking)
   std::vector<std::int32_t> label, region;
   SandwichRepair repair;
 };
@@ -118,7 +118,7 @@ RepairedCandidate& pick_candidate(std::vector<RepairedCandidate>& repaired,
   const auto key = [&](const RepairedCandidate& r) {
     const LabelingCandidate& c = candidates[r.index];
     return std::make_tuple(r.repair.worst_share > cap, r.repair.parts, r.repair.worst_share,
-                           c.volume_variance_mm6, c.energy, r.index);
+                           c.volume_variance_mm6, c.energy, c.restart);
   };
   return *std::min_element(repaired.begin(), repaired.end(),
                            [&](const auto& a, const auto& b) { return key(a) < key(b); });
@@ -236,16 +236,8 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   // first (fewest parts, most even volumes, lowest energy) are tried. On bunny, dragonstand,
   // elephant and pinion the one kept ranked 2nd to 8th.
   const std::vector<LabelingCandidate>& candidates = d.labeling.candidates;
-  std::vector<std::size_t> order(candidates.size());
-  for (std::size_t c = 0; c < order.size(); ++c) order[c] = c;
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return std::make_tuple(candidates[a].parts, candidates[a].volume_variance_mm6,
-                           candidates[a].energy, a) <
-           std::make_tuple(candidates[b].parts, candidates[b].volume_variance_mm6,
-                           candidates[b].energy, b);
-  });
   std::vector<std::size_t> distinct;  // the first candidate of each distinct labeling
-  for (std::size_t c : order)
+  for (std::size_t c = 0; c < candidates.size(); ++c)
     if (distinct.size() < static_cast<std::size_t>(opts.candidates) &&
         std::none_of(distinct.begin(), distinct.end(),
                      [&](std::size_t e) { return candidates[e].label == candidates[c].label; }))
@@ -273,7 +265,7 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   region = std::move(chosen.region);
   d.sandwich = std::move(chosen.repair);
   const LabelingCandidate& candidate = candidates[chosen.index];
-  d.labeling.best_restart = static_cast<std::int32_t>(chosen.index);
+  d.labeling.best_restart = candidate.restart;
   d.labeling.energy = candidate.energy;
   d.labeling.num_components = candidate.parts;
   d.labeling.num_labels = count_labels(candidate.label);

@@ -10,6 +10,7 @@
 #include <limits>
 #include <numeric>
 #include <string>
+#include <tuple>
 
 #include "alpha_expansion.h"
 #include "reduce_parts.h"
@@ -303,22 +304,17 @@ Labeling segment(const TetMesh& tets, const AccessibilityField& field, const Seg
     for (std::int32_t n = 0; n < num_nodes; ++n) labels[r][tet_of[n]] = dirs[candidates[r][n]];
     stats[r] = part_stats(tets, volume_mm3, labels[r]);
   });
-  std::size_t best = 0;
-  for (std::size_t r = 1; r < candidates.size(); ++r) {
-    const PartStats& a = stats[r];
-    const PartStats& b = stats[best];
-    if (a.parts != b.parts) {
-      if (a.parts < b.parts) best = r;
-    } else if (a.volume_variance_mm6 != b.volume_variance_mm6) {
-      if (a.volume_variance_mm6 < b.volume_variance_mm6) best = r;
-    } else if (energy[r] < energy[best]) {
-      best = r;
-    }
-  }
+  std::vector<std::size_t> rank(candidates.size());
+  for (std::size_t r = 0; r < rank.size(); ++r) rank[r] = r;
+  const auto key = [&](std::size_t r) {
+    return std::make_tuple(stats[r].parts, stats[r].volume_variance_mm6, energy[r], r);
+  };
+  std::sort(rank.begin(), rank.end(), [&](std::size_t a, std::size_t b) { return key(a) < key(b); });
+  const std::size_t best = rank.front();
   out.label = labels[best];
-  for (std::size_t r = 0; r < candidates.size(); ++r)
-    out.candidates.push_back(
-        {std::move(labels[r]), stats[r].parts, stats[r].volume_variance_mm6, energy[r]});
+  for (std::size_t r : rank)
+    out.candidates.push_back({std::move(labels[r]), static_cast<std::int32_t>(r), stats[r].parts,
+                              stats[r].volume_variance_mm6, energy[r]});
   std::vector<std::int32_t> label_of_direction(field.feasible.num_directions(), -1);
   for (std::int32_t l = 0; l < num_labels; ++l) label_of_direction[dirs[l]] = l;
   std::vector<std::int32_t> node_labels(num_nodes);
