@@ -412,6 +412,30 @@ TEST(Check, MoldHalfWithAnUndercutFailsMolds) {
   EXPECT_TRUE(item(missing, "dhf").passed);
 }
 
+// Halves whose cavity is wider than the part on its +x side (a tenth of its surface): a
+// sliver thinner than epsilon there is an undercut the tolerance accepts, filled by the cast;
+// open space reaching further out than epsilon leaves the face unmoulded.
+TEST(Check, MoldSliverWithinEpsilonIsToleratedWiderIsNot) {
+  const TriMesh part = box(kLo, kHi);
+  auto with_cavity_wider_by = [&](const std::string& name, double mm) {
+    const auto [up, down] = box_molds(kLo, kHi + Vec3(mm, 0, 0));
+    return run(write_folder(name, part, {{part, Vec3::UnitZ(), {up, down}}}, {0}));
+  };
+  const double face_share = 60.0 * 40.0 / (2 * (100.0 * 60.0 + 100.0 * 40.0 + 60.0 * 40.0));
+  const CheckReport sliver = with_cavity_wider_by("sliver", 0.3);  // epsilon is 0.4 mm
+  SCOPED_TRACE(format_text(sliver));
+  EXPECT_TRUE(sliver.passed());
+  EXPECT_NEAR(figure(item(sliver, "molds"), "max_undercut_sliver_fraction"), face_share, 0.02);
+  EXPECT_GE(figure(item(sliver, "molds"), "min_surface_coverage"), 0.999);
+
+  const CheckReport fin = with_cavity_wider_by("fin", 1.0);
+  expect_failures(fin, {"molds"});
+  EXPECT_EQ(figure(item(fin, "molds"), "max_undercut_sliver_fraction"), 0.0);
+  EXPECT_NEAR(figure(item(fin, "molds"), "min_surface_coverage"), 1 - face_share, 0.02);
+  EXPECT_NE(item(fin, "molds").summary.find("first bare sample at 100.00"), std::string::npos)
+      << item(fin, "molds").summary;
+}
+
 // Mold halves written in frames of their own (as dhfcast writes them, laid flat to print) are
 // checked where decomposition.json's motions put them back around the part.
 TEST(Check, MoldHalvesArePlacedByTheirMotions) {

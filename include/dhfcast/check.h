@@ -39,7 +39,10 @@ struct CheckOptions {
   // max_blocked_samples of its samples deeper than epsilon), part and halves may overlap by at
   // most max_overlap_fraction of the part's volume, and the halves must mould its surface.
   std::int32_t mold_samples = 20000;        // per part and per test (release, overlap, cover)
-  double min_mold_surface_coverage = 0.99;  // part-surface samples within epsilon/4 of a half
+  // Part-surface samples moulded: a half within epsilon/4, or the point epsilon out along the
+  // normal inside a half (an undercut sliver the tolerance accepts, which the cast fills), or
+  // opening into a listed sprue or vent.
+  double min_mold_surface_coverage = 0.99;
   // fidelity (only with input_mesh): two-sided surface distance, 99th percentile.
   std::int64_t fidelity_samples = 100000;  // per side
   double max_fidelity_p99_rel = 0.001;     // relative to the input's bounding-box diagonal

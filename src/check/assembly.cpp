@@ -208,7 +208,8 @@ CheckItem check_molds(const CheckContext& c) {
   CheckItem item;
   item.name = "molds";
   std::int64_t with_molds = 0, blocked = 0, unresolved = 0;
-  double inside_mm = 0.0, worst_overlap = 0.0, worst_cover = 1.0, most_served = 0.0;
+  double inside_mm = 0.0, worst_overlap = 0.0, worst_cover = 1.0, most_sliver = 0.0,
+         most_served = 0.0;
   std::int32_t min_sprues = std::numeric_limits<std::int32_t>::max(), min_keys = min_sprues;
   std::int64_t vents = 0;
   std::string first;
@@ -268,37 +269,50 @@ CheckItem check_molds(const CheckContext& c) {
       problem =
           format("the halves and the part overlap (%.3f%% of the part's volume)", 100 * overlap);
 
-    // --- cover: the part's surface is moulded by the halves, or opens into a listed channel
-    // (a sample within the channel's radius of its axis: the sprue or vent stub is cut off
-    // after casting), counted apart ---
+    // --- cover: the part's surface is moulded by the halves. Where the part is a double height
+    // field only up to the undercut tolerance, a half cannot hold the undercut and leave, so the
+    // cast fills it: a sample counts as moulded within the tolerance when the point epsilon out
+    // along its normal is inside a half (the sliver between is thinner than epsilon; a fin of
+    // open space reaching further out is not). A sample that opens into a listed channel (within
+    // the channel's radius of its axis: the sprue or vent stub is cut off after casting) is
+    // served by it. Both are counted apart. ---
     const std::vector<SurfaceSample> surface =
         sample_surface(part.solid.mesh(), o.mold_samples, random);
-    std::vector<char> state(surface.size(), 0);  // 1 covered, 2 served by a channel
+    enum : char { kBare, kMoulded, kSliver, kChannel };
+    std::vector<char> state(surface.size(), kBare);
     const double near_mm = 0.25 * o.epsilon_mm;
     tbb::parallel_for(std::size_t{0}, surface.size(), [&](std::size_t k) {
       const Vec3& p = surface[k].point;
       if (halves[0]->distance(p) <= near_mm || halves[1]->distance(p) <= near_mm) {
-        state[k] = 1;
+        state[k] = kMoulded;
+        return;
+      }
+      const Vec3 out = p + o.epsilon_mm * surface[k].normal;
+      if (halves[0]->contains(out) || halves[1]->contains(out)) {
+        state[k] = kSliver;
         return;
       }
       for (const CheckedPart::Channel& ch : part.channels) {
         const Vec3 axis = ch.exit - ch.mouth;
         const double t = std::clamp((p - ch.mouth).dot(axis) / axis.squaredNorm(), 0.0, 1.0);
-        if ((ch.mouth + t * axis - p).norm() <= 0.5 * ch.diameter_mm + near_mm) state[k] = 2;
+        if ((ch.mouth + t * axis - p).norm() <= 0.5 * ch.diameter_mm + near_mm) state[k] = kChannel;
       }
     });
     const double n_surface = std::max<double>(1.0, double(surface.size()));
-    const double cover = double(std::ranges::count(state, 1)) / n_surface;
-    const double served = double(std::ranges::count(state, 2)) / n_surface;
-    worst_cover = std::min(worst_cover, cover + served);
+    const double cover = double(std::ranges::count(state, kMoulded)) / n_surface;
+    const double sliver = double(std::ranges::count(state, kSliver)) / n_surface;
+    const double served = double(std::ranges::count(state, kChannel)) / n_surface;
+    worst_cover = std::min(worst_cover, cover + sliver + served);
+    most_sliver = std::max(most_sliver, sliver);
     most_served = std::max(most_served, served);
-    if (cover + served < o.min_mold_surface_coverage && problem.empty()) {
-      const auto bare = std::ranges::find(state, 0) - state.begin();
+    if (cover + sliver + served < o.min_mold_surface_coverage && problem.empty()) {
+      const auto bare = std::ranges::find(state, kBare) - state.begin();
       const Vec3& at = surface[bare].point;
       problem = format(
-          "only %.2f%% of the part's surface is within %.3g mm of a half (%.2f%% more opens "
-          "into a channel; first bare sample at %.2f %.2f %.2f)",
-          100 * cover, near_mm, 100 * served, at.x(), at.y(), at.z());
+          "only %.2f%% of the part's surface is within %.3g mm of a half (%.2f%% more within "
+          "the undercut tolerance, %.2f%% opens into a channel; first bare sample at %.2f %.2f "
+          "%.2f)",
+          100 * cover, near_mm, 100 * sliver, 100 * served, at.x(), at.y(), at.z());
     }
 
     // --- fittings: a sprue to pour through, keys to close the mold in register ---
@@ -323,6 +337,7 @@ CheckItem check_molds(const CheckContext& c) {
                   {"max_inside_mm", inside_mm},
                   {"max_overlap_fraction", worst_overlap},
                   {"min_surface_coverage", worst_cover},
+                  {"max_undercut_sliver_fraction", most_sliver},
                   {"max_channel_served_fraction", most_served},
                   {"min_sprues", min_sprues == std::numeric_limits<std::int32_t>::max() ? 0.0 : double(min_sprues)},
                   {"min_keys", min_keys == std::numeric_limits<std::int32_t>::max() ? 0.0 : double(min_keys)},
@@ -331,10 +346,11 @@ CheckItem check_molds(const CheckContext& c) {
   item.summary = item.passed
                      ? format(
                            "%lld part%s: halves release along +-d, overlap at most %.3f%%, surface "
-                           "covered at least %.2f%% (channels at most %.2f%%), sprues, %lld vents, "
-                           ">= %d keys",
+                           "covered at least %.2f%% (undercut slivers at most %.2f%%, channels at most "
+                           "%.2f%%), sprues, %lld vents, >= %d keys",
                            static_cast<long long>(with_molds), with_molds == 1 ? "" : "s",
-                           100 * worst_overlap, 100 * worst_cover, 100 * most_served,
+                           100 * worst_overlap, 100 * worst_cover, 100 * most_sliver,
+                           100 * most_served,
                            static_cast<long long>(vents), min_keys)
                      : first;
   return item;
