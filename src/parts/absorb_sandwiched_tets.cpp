@@ -3,6 +3,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <string>
@@ -21,25 +22,41 @@ namespace {
 // neighbour its DHF property, or makes it touch itself.
 constexpr double kFragmentShare = 1e-4;
 
+// Per tet, the normal of each face i (kTetFaces[i]; its length twice the face's area), which
+// points out of the tet: computed once, as every line walk needs them at every step.
+using FaceNormals = std::vector<std::array<Vec3, 4>>;
+
+FaceNormals face_normals(const TetMesh& tets) {
+  FaceNormals normals(tets.tets.size());
+  tbb::parallel_for(std::size_t{0}, tets.tets.size(), [&](std::size_t t) {
+    const Tet& k = tets.tets[t];
+    for (int i = 0; i < 4; ++i) {
+      const Vec3& a = tets.vertices[k[kTetFaces[i][0]]];
+      normals[t][i] =
+          (tets.vertices[k[kTetFaces[i][1]]] - a).cross(tets.vertices[k[kTetFaces[i][2]]] - a);
+    }
+  });
+  return normals;
+}
+
 // Calls visit(u) for every tet u the ray x + s * d, s > 0, enters after tet t, until it leaves
 // the tet mesh or visit returns false. Each step leaves the current tet through the face whose
 // plane the ray reaches first among those it points out of, so every step makes progress even
 // when rounding puts x slightly off the entry face; the step cap guards against cycling on
 // degenerate tets.
 template <class Visit>
-void walk_line(const TetMesh& tets, std::int32_t t, Vec3 x, const Vec3& d, Visit&& visit) {
+void walk_line(const TetMesh& tets, const FaceNormals& normals, std::int32_t t, Vec3 x,
+               const Vec3& d, Visit&& visit) {
   const std::size_t max_steps = tets.tets.size();
   for (std::size_t step = 0; step < max_steps; ++step) {
     const Tet& k = tets.tets[t];
     int exit = -1;
     double best = INFINITY;
     for (int i = 0; i < 4; ++i) {
-      const Vec3& a = tets.vertices[k[kTetFaces[i][0]]];
-      const Vec3 n =
-          (tets.vertices[k[kTetFaces[i][1]]] - a).cross(tets.vertices[k[kTetFaces[i][2]]] - a);
+      const Vec3& n = normals[t][i];
       const double along = n.dot(d);
       if (!(along > 0.0)) continue;
-      const double s = std::max(0.0, n.dot(a - x) / along);
+      const double s = std::max(0.0, n.dot(tets.vertices[k[kTetFaces[i][0]]] - x) / along);
       if (s < best) {
         best = s;
         exit = i;
@@ -59,6 +76,7 @@ void walk_line(const TetMesh& tets, std::int32_t t, Vec3 x, const Vec3& d, Visit
 // while it gains and loses tets, even if it falls apart.
 struct Parts {
   const TetMesh& tets;
+  const FaceNormals& normals;
   const std::vector<std::int32_t>& region;
   const std::vector<std::vector<Vec3>>& directions;
   const TetAllowsLabel& allows;
@@ -79,7 +97,7 @@ struct Parts {
   template <class In, class Passable>
   bool blocked_gap(std::int32_t t, const Vec3& d, In&& in, Passable&& passable) const {
     bool blocked = false, found = false;
-    walk_line(tets, t, centre[t], d, [&](std::int32_t u) {
+    walk_line(tets, normals, t, centre[t], d, [&](std::int32_t u) {
       if (in(u)) {
         found = blocked;
         return !found;
@@ -95,7 +113,7 @@ struct Parts {
   template <class In, class Passable>
   bool reaches(std::int32_t t, const Vec3& d, In&& in, Passable&& passable) const {
     bool found = false;
-    walk_line(tets, t, centre[t], d, [&](std::int32_t u) {
+    walk_line(tets, normals, t, centre[t], d, [&](std::int32_t u) {
       if (in(u)) {
         found = true;
         return false;
@@ -136,11 +154,11 @@ struct Parts {
 
 // Face-connected components of the tets with mark[t], by smallest tet; returns their tets.
 std::vector<std::vector<std::int32_t>> marked_components(const TetMesh& tets,
-                                                        const std::vector<char>& mark) {
+                                                         const std::vector<char>& mark) {
   const std::vector<std::int32_t> as_label(mark.begin(), mark.end());
   std::int32_t count = 0;
-  const std::vector<std::int32_t> component = detail::label_components(
-      tets, as_label, std::vector<std::int32_t>(mark.size(), 0), count);
+  const std::vector<std::int32_t> component =
+      detail::label_components(tets, as_label, std::vector<std::int32_t>(mark.size(), 0), count);
   std::vector<std::vector<std::int32_t>> members(count);
   for (std::size_t t = 0; t < mark.size(); ++t)
     if (mark[t]) members[component[t]].push_back(static_cast<std::int32_t>(t));
@@ -295,7 +313,8 @@ struct Sandwiches {
   double worst_share = 0.0;
   std::int32_t parts = 0;
 };
-Sandwiches count_sandwiched(const TetMesh& tets, const std::vector<std::int32_t>& label,
+Sandwiches count_sandwiched(const TetMesh& tets, const FaceNormals& normals,
+                            const std::vector<std::int32_t>& label,
                             const std::vector<std::int32_t>& region,
                             const std::vector<std::vector<Vec3>>& directions,
                             const std::vector<Vec3>& centre, const std::vector<double>& volume,
@@ -315,14 +334,14 @@ Sandwiches count_sandwiched(const TetMesh& tets, const std::vector<std::int32_t>
       if (r != region[t] || l == label[t]) continue;
       const Vec3& d = directions[r][l];
       ahead.clear();
-      walk_line(tets, t, centre[t], d, [&](std::int32_t u) {
+      walk_line(tets, normals, t, centre[t], d, [&](std::int32_t u) {
         if (region[u] == r && label[u] == l &&
             std::find(ahead.begin(), ahead.end(), part[u]) == ahead.end())
           ahead.push_back(part[u]);
         return true;
       });
       if (ahead.empty()) continue;
-      walk_line(tets, t, centre[t], -d, [&](std::int32_t u) {
+      walk_line(tets, normals, t, centre[t], -d, [&](std::int32_t u) {
         if (region[u] == r && label[u] == l &&
             std::find(ahead.begin(), ahead.end(), part[u]) != ahead.end())
           sandwiching[t] = part[u];
@@ -428,7 +447,7 @@ void polish(Parts& s, std::vector<std::int32_t>& label, std::int32_t max_rounds)
   const std::int32_t n = static_cast<std::int32_t>(label.size());
   for (std::int32_t round = 0; round < max_rounds; ++round) {
     std::vector<std::int32_t> within;
-    count_sandwiched(s.tets, label, s.region, s.directions, s.centre, s.volume, &within);
+    count_sandwiched(s.tets, s.normals, label, s.region, s.directions, s.centre, s.volume, &within);
     std::int32_t num_parts = 0;
     s.owner = detail::label_components(s.tets, label, s.region, num_parts);
     s.label_of.assign(num_parts, -1);
@@ -460,11 +479,12 @@ void polish(Parts& s, std::vector<std::int32_t>& label, std::int32_t max_rounds)
       for (std::int32_t t : g) {
         std::vector<std::int32_t> tail[2];
         for (int side = 0; side < 2; ++side)
-          walk_line(s.tets, t, s.centre[t], side == 0 ? dq : Vec3(-dq), [&](std::int32_t u) {
-            if (s.owner[u] != q) return false;
-            tail[side].push_back(u);
-            return true;
-          });
+          walk_line(s.tets, s.normals, t, s.centre[t], side == 0 ? dq : Vec3(-dq),
+                    [&](std::int32_t u) {
+                      if (s.owner[u] != q) return false;
+                      tail[side].push_back(u);
+                      return true;
+                    });
         const int shorter = tail[0].size() <= tail[1].size() ? 0 : 1;
         for (std::int32_t u : tail[shorter])
           if (!in_move[u] && s.may_join(u, p)) in_move[u] = 1, move.push_back(u);
@@ -502,7 +522,8 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
       throw Error(ErrorCode::Internal,
                   "sandwich repair: tet " + std::to_string(t) + " has no direction");
 
-  Parts s{tets, region, directions, allows, {}, {}, {}, {}, {}, {}};
+  const FaceNormals normals = face_normals(tets);
+  Parts s{tets, normals, region, directions, allows, {}, {}, {}, {}, {}, {}};
   s.centre.resize(n);
   s.volume.resize(n);
   for (std::int32_t t = 0; t < n; ++t) {
@@ -513,7 +534,7 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
   }
   const std::vector<std::int32_t> initial = label;
   SandwichRepair repair;
-  Sandwiches best = count_sandwiched(tets, label, region, directions, s.centre, s.volume);
+  Sandwiches best = count_sandwiched(tets, normals, label, region, directions, s.centre, s.volume);
   if (opts.max_rounds > 0) {
     std::int32_t num_parts = 0;
     s.owner = detail::label_components(tets, label, region, num_parts);
@@ -540,7 +561,7 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
       SandwichRepair tried;
       const std::vector<std::int32_t> result = settle_all(s, order, opts, tried);
       const Sandwiches left =
-          count_sandwiched(tets, result, region, directions, s.centre, s.volume);
+          count_sandwiched(tets, normals, result, region, directions, s.centre, s.volume);
       if (std::make_pair(left.worst_share, left.parts) <
           std::make_pair(best.worst_share, best.parts)) {
         best = left;
@@ -558,7 +579,7 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
     std::vector<std::int32_t> polished = label;
     polish(s, polished, opts.max_rounds);
     const Sandwiches left =
-        count_sandwiched(tets, polished, region, directions, s.centre, s.volume);
+        count_sandwiched(tets, normals, polished, region, directions, s.centre, s.volume);
     if (polished != label && left.worst_share <= best.worst_share && left.parts <= best.parts) {
       best = left;
       label = std::move(polished);
