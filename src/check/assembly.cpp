@@ -295,7 +295,8 @@ CheckItem check_molds(const CheckContext& c) {
       for (const CheckedPart::Channel& ch : part.channels) {
         const Vec3 axis = ch.exit - ch.mouth;
         const double t = std::clamp((p - ch.mouth).dot(axis) / axis.squaredNorm(), 0.0, 1.0);
-        if ((ch.mouth + t * axis - p).norm() <= 0.5 * ch.diameter_mm + near_mm) state[k] = kChannel;
+        if ((ch.mouth + t * axis - p).norm() <= 0.5 * ch.diameter_mm + near_mm)
+          state[k] = kChannel;
       }
     });
     const double n_surface = std::max<double>(1.0, double(surface.size()));
@@ -346,8 +347,8 @@ CheckItem check_molds(const CheckContext& c) {
   item.summary = item.passed
                      ? format(
                            "%lld part%s: halves release along +-d, overlap at most %.3f%%, surface "
-                           "covered at least %.2f%% (undercut slivers at most %.2f%%, channels at most "
-                           "%.2f%%), sprues, %lld vents, >= %d keys",
+                           "covered at least %.2f%% (undercut slivers at most %.2f%%, channels "
+                           "at most %.2f%%), sprues, %lld vents, >= %d keys",
                            static_cast<long long>(with_molds), with_molds == 1 ? "" : "s",
                            100 * worst_overlap, 100 * worst_cover, 100 * most_sliver,
                            100 * most_served,
