@@ -177,10 +177,11 @@ CheckItem check_assembly(const CheckContext& c) {
       if (first.empty())
         first = format(
             "%s (placed %zu%s) runs into %s on its way in: %lld of %lld samples, "
-            "up to %.3g mm inside",
+            "up to %.3g mm inside (first from %.2f %.2f %.2f)",
             part_name(c.parts[c.order[i]]).c_str(), i + 1, ordinal_suffix(i + 1),
             part_name(c.parts[c.order[j]]).c_str(), static_cast<long long>(t.blocked),
-            static_cast<long long>(sample_count[c.order[i]]), t.inside_mm);
+            static_cast<long long>(sample_count[c.order[i]]), t.inside_mm, t.first_blocked.x(),
+            t.first_blocked.y(), t.first_blocked.z());
     }
   std::int64_t samples = 0;
   for (std::int64_t s : sample_count) samples += s;

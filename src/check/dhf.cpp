@@ -22,7 +22,8 @@ enum class LineKind { Miss, Inconsistent, Single, Tolerated, Violation };
 
 struct LineResult {
   LineKind kind = LineKind::Miss;
-  double depth_mm = 0.0;  // violations: deepest gap point, distance to the surface
+  double depth_mm = 0.0;     // violations: deepest gap point, distance to the surface
+  Vec3 gap_middle{0, 0, 0};  // violations: the middle of the deepest gap
 };
 
 LineResult trace(const SurfaceIndex& solid, const Vec3& origin, const Vec3& d, double eps) {
@@ -36,9 +37,10 @@ LineResult trace(const SurfaceIndex& solid, const Vec3& origin, const Vec3& d, d
     // Every gap point is within half the gap's length of its two ends, which are on the surface.
     if (t1 - t0 <= 2 * eps) continue;
     const double depth = solid.max_distance_along(origin, d, t0, t1, 0.5 * eps);
-    if (depth > eps) {
+    if (depth > eps && depth > r.depth_mm) {
       r.kind = LineKind::Violation;
-      r.depth_mm = std::max(r.depth_mm, depth);
+      r.depth_mm = depth;
+      r.gap_middle = origin + (0.5 * (t0 + t1)) * d;
     }
   }
   return r;
@@ -47,6 +49,7 @@ LineResult trace(const SurfaceIndex& solid, const Vec3& origin, const Vec3& d, d
 struct PartResult {
   std::int64_t lines = 0, multi = 0, violations = 0, inconsistent = 0;
   double depth_mm = 0.0;
+  Vec3 gap_middle{0, 0, 0};  // of the deepest gap
   double fraction() const { return lines > 0 ? double(violations) / double(lines) : 0.0; }
 };
 
@@ -88,7 +91,7 @@ PartResult check_part(const CheckedPart& part, const CheckOptions& o, std::uint6
       r.multi += line.kind != LineKind::Single;
       if (line.kind == LineKind::Violation) {
         ++r.violations;
-        r.depth_mm = std::max(r.depth_mm, line.depth_mm);
+        if (line.depth_mm > r.depth_mm) r.depth_mm = line.depth_mm, r.gap_middle = line.gap_middle;
       }
     }
   }
@@ -145,10 +148,11 @@ CheckItem check_dhf(const CheckContext& c) {
   else
     item.summary = format(
         "%lld part%s not a double height field: worst %s, %.2f%% of its lines "
-        "(%lld/%lld) meet it in several intervals, gaps up to %.3g mm deep",
+        "(%lld/%lld) meet it in several intervals, gaps up to %.3g mm deep (its deepest gap's "
+        "middle at %.2f %.2f %.2f)",
         static_cast<long long>(failing), failing == 1 ? " is" : "s are", worst_name.c_str(),
         100 * w.fraction(), static_cast<long long>(w.violations), static_cast<long long>(w.lines),
-        w.depth_mm);
+        w.depth_mm, w.gap_middle.x(), w.gap_middle.y(), w.gap_middle.z());
   return item;
 }
 
