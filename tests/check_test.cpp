@@ -14,6 +14,7 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <sstream>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -225,6 +226,19 @@ TriMesh u_shape() {
                     [](int i, int, int k) { return k == 0 || i != 1; });
 }
 
+// The point a summary names after `marker` ("x y z").
+Vec3 point_after(const std::string& summary, const std::string& marker) {
+  const std::size_t at = summary.find(marker);
+  if (at == std::string::npos) {
+    ADD_FAILURE() << "no \"" << marker << "\" in: " << summary;
+    return Vec3::Constant(NAN);
+  }
+  std::istringstream in(summary.substr(at + marker.size()));
+  Vec3 p;
+  in >> p.x() >> p.y() >> p.z();
+  return p;
+}
+
 TEST(Check, PartThatIsNotADoubleHeightFieldFailsOnlyDhf) {
   // Along x, lines through the prongs cross the 10 mm wide opening: 2 intervals, 5 mm deep gap.
   const Folder bad = write_folder("u-x", u_shape(), {{u_shape(), Vec3::UnitX()}}, {0});
@@ -235,6 +249,10 @@ TEST(Check, PartThatIsNotADoubleHeightFieldFailsOnlyDhf) {
   EXPECT_NEAR(figure(dhf, "max_violation_fraction"), 2.0 / 3.0, 0.05);
   EXPECT_NEAR(figure(dhf, "max_depth_mm"), 5.0, 0.2);
   EXPECT_NE(dhf.summary.find("part 0"), std::string::npos) << dhf.summary;
+  // The deepest gaps lie midway across the opening, at least 5 mm above the base.
+  const Vec3 gap = point_after(dhf.summary, "deepest gap's middle at ");
+  EXPECT_NEAR(gap.x(), 15.0, 0.01) << dhf.summary;
+  EXPECT_TRUE(gap.y() > 0 && gap.y() < 10 && gap.z() >= 15 - 0.2 && gap.z() < 30) << dhf.summary;
 
   // The same U along z (its opening) is a double height field.
   const Folder good = write_folder("u-z", u_shape(), {{u_shape(), Vec3::UnitZ()}}, {0});
@@ -282,6 +300,11 @@ TEST(Check, AssemblyOrderThroughAnEarlierPartFails) {
   EXPECT_EQ(figure(a, "order_exists"), 1.0);
   EXPECT_NE(a.summary.find("a collision-free order exists: 0 1"), std::string::npos) << a.summary;
   EXPECT_NEAR(figure(a, "max_inside_mm"), 20.0, 0.1);
+  // The sample named is one of the bottom part's.
+  const Vec3 first = point_after(a.summary, "first from ");
+  EXPECT_TRUE(first.x() >= 0 && first.x() <= 100 && first.y() >= 0 && first.y() <= 60 &&
+              first.z() >= 0 && first.z() <= 20.01)
+      << a.summary;
 
   // With the top part cast along -z it must arrive from below: no order works.
   std::vector<PartSpec> parts = two_boxes(false);

@@ -529,47 +529,6 @@ TEST(AbsorbSandwichedTets, TetsLeftBetweenAPartsTetsGoToItWithTheirColumnsTail) 
   EXPECT_EQ(again, label);
 }
 
-// A C lying on its back, 60 mm cubed: a slab (z 0-20 mm), a spine at x < 20 mm (z 20-40) and an
-// arm (z 40-50), all part 0 (direction up), under a top layer (z 50-60) of part 1 (sideways).
-// Lines along up at x > 20 mm leave part 0 at the 20 mm slot of air and come back into it: part
-// 0 is not a double height field there, though no tet lies between two of its tets.
-TEST(AbsorbSandwichedTets, PartMeetingALineAgainAcrossOpenSpaceLosesTheSmallerSide) {
-  const std::vector<double> c{0, 10, 20, 30, 40, 50, 60};
-  const TetMesh mesh =
-      test::grid_tets(c, c, c, [](int i, int, int k) { return i < 2 || k < 2 || k > 3; });
-  std::vector<Cell> cell;
-  for (std::size_t t = 0; t < mesh.tets.size(); ++t) {
-    Vec3 x = Vec3::Zero();
-    for (std::int32_t v : mesh.tets[t]) x += 0.25 * mesh.vertices[v];
-    cell.push_back(
-        {static_cast<int>(x.x() / 10), static_cast<int>(x.y() / 10), static_cast<int>(x.z() / 10)});
-  }
-  std::vector<std::int32_t> start;
-  for (const Cell& k : cell) start.push_back(k[2] == 5 ? 1 : 0);
-  const std::vector<std::vector<Vec3>> dirs{{kUp, kSide}};
-
-  auto label = start;
-  const SandwichRepair repair =
-      absorb_sandwiched_tets(mesh, label, zeros_like(mesh), dirs, kAllowAll);
-  EXPECT_TRUE(repair.converged);
-  EXPECT_EQ(repair.parts, 2);
-  // The arm beyond the slot (24 cells) goes to the top layer; the slab (48 cells) stays.
-  for (std::size_t t = 0; t < label.size(); ++t)
-    EXPECT_EQ(label[t], cell[t][2] == 5 || (cell[t][2] == 4 && cell[t][0] >= 2) ? 1 : 0)
-        << "tet " << t << " in cell " << cell[t][0] << " " << cell[t][1] << " " << cell[t][2];
-  EXPECT_EQ(repair.moved_tets, 24 * 6);
-
-  // A slot within twice the undercut tolerance is no gap: nothing moves.
-  SandwichOptions wide;
-  wide.epsilon_mm = 10.5;
-  label = start;
-  const SandwichRepair tolerated =
-      absorb_sandwiched_tets(mesh, label, zeros_like(mesh), dirs, kAllowAll, wide);
-  EXPECT_TRUE(tolerated.converged);
-  EXPECT_EQ(tolerated.moved_tets, 0);
-  EXPECT_EQ(label, start);
-}
-
 // --- parts that touch themselves ---
 
 // Positions where some part's mesh has two vertices: where extract_parts() cut a part apart

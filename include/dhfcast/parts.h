@@ -43,9 +43,6 @@ struct SandwichOptions {
   // neighbouring part even where that part's direction does not allow all of it: a part that
   // small is not worth a mold of its own.
   double tiny_piece_share = 0.01;
-  // Undercut tolerance: a part may meet a line along its direction again after a stretch of
-  // open space no longer than 2 * epsilon_mm (decompose() takes it from access.epsilon_mm).
-  double epsilon_mm = 0.4;
 };
 
 // Tets that absorb_sandwiched_tets() moved from one label to another, within one region.
@@ -64,9 +61,8 @@ struct SandwichRepair {
   bool converged = false;       // no tet is sandwiched in the labeling kept
   std::int32_t moved_tets = 0;  // tets whose label changed (pieces below included)
   double moved_volume_mm3 = 0.0;
-  // Tets still sandwiched in the labeling kept (between two tets of one part, or on the smaller
-  // side of a gap of open space between two of its own tets), and the largest volume of them
-  // within one part, as a share of that part's volume (the part is not a DHF there).
+  // Tets still sandwiched in the labeling kept, and the largest volume of them between two tets
+  // of one part, as a share of that part's volume (the part is not a DHF there).
   std::int32_t stuck_tets = 0;
   double worst_share = 0.0;
   std::int32_t parts = 0;  // face-connected components of equal (region, label) in it

@@ -13,7 +13,6 @@
 #include "components.h"
 #include "dhfcast/error.h"
 #include "dhfcast/parts.h"
-#include "outer_columns.h"
 
 namespace dhfcast {
 namespace {
@@ -40,24 +39,14 @@ FaceNormals face_normals(const TetMesh& tets) {
   return normals;
 }
 
-// Where a line along one direction that leaves the tet mesh comes back into it.
-struct Reentry {
-  const detail::OuterColumns& columns;  // of the tet mesh's boundary faces, owned by their tets
-  double sign;                          // +1: the line runs along the columns' direction, -1 not
-  double min_gap;  // shorter stretches of open space are within the undercut tolerance
-};
-// What walk_line() visits for a stretch of open space longer than Reentry::min_gap.
-constexpr std::int32_t kOpenSpace = -1;
-
-// Calls visit(u) for every tet u the ray x + s * d, s > 0 (d unit), enters after tet t, until it
-// leaves the tet mesh (with a reentry: until it leaves it for good, visiting kOpenSpace for each
-// long stretch outside) or visit returns false. Each step leaves the current tet through the
-// face whose plane the ray reaches first among those it points out of, so every step makes
-// progress even when rounding puts x slightly off the entry face; the step cap guards against
-// cycling on degenerate tets.
+// Calls visit(u) for every tet u the ray x + s * d, s > 0, enters after tet t, until it leaves
+// the tet mesh or visit returns false. Each step leaves the current tet through the face whose
+// plane the ray reaches first among those it points out of, so every step makes progress even
+// when rounding puts x slightly off the entry face; the step cap guards against cycling on
+// degenerate tets.
 template <class Visit>
 void walk_line(const TetMesh& tets, const FaceNormals& normals, std::int32_t t, Vec3 x,
-               const Vec3& d, Visit&& visit, const Reentry* reentry = nullptr) {
+               const Vec3& d, Visit&& visit) {
   const std::size_t max_steps = tets.tets.size();
   for (std::size_t step = 0; step < max_steps; ++step) {
     const Tet& k = tets.tets[t];
@@ -74,15 +63,9 @@ void walk_line(const TetMesh& tets, const FaceNormals& normals, std::int32_t t, 
       }
     }
     if (exit < 0) return;
-    std::int32_t u = tets.neighbors[t][exit];
+    const std::int32_t u = tets.neighbors[t][exit];
+    if (u < 0) return;
     x += best * d;
-    if (u < 0) {
-      if (!reentry) return;
-      const auto [entry, s] = reentry->columns.next_entry(x, reentry->sign);
-      if (entry < 0 || (s > reentry->min_gap && !visit(kOpenSpace))) return;
-      u = entry;
-      x += s * d;
-    }
     if (!visit(u)) return;
     t = u;
   }
@@ -97,9 +80,6 @@ struct Parts {
   const std::vector<std::int32_t>& region;
   const std::vector<std::vector<Vec3>>& directions;
   const TetAllowsLabel& allows;
-  // Per (region, label): the tet mesh's boundary faces in columns along its direction.
-  const std::map<std::pair<std::int32_t, std::int32_t>, detail::OuterColumns>& boundary;
-  double min_gap;  // open space along a part's direction longer than this is a gap
   std::vector<Vec3> centre;
   std::vector<double> volume;
   std::vector<std::int32_t> owner;
@@ -112,29 +92,19 @@ struct Parts {
     return region[t] == region_of[p] && allows(t, region_of[p], label_of[p]);
   }
 
-  // Whether walking from tet t along sign * direction(p) meets a tet `in` accepts after a run
-  // of tets `in` rejects, or of open space, that contains one `passable` rejects or a gap of
-  // open space.
+  // Whether walking from tet t along d meets a tet `in` accepts after a run of tets `in`
+  // rejects that contains one `passable` rejects.
   template <class In, class Passable>
-  bool blocked_gap(std::int32_t p, std::int32_t t, double sign, In&& in,
-                   Passable&& passable) const {
-    const Reentry reentry{boundary.at({region_of[p], label_of[p]}), sign, min_gap};
+  bool blocked_gap(std::int32_t t, const Vec3& d, In&& in, Passable&& passable) const {
     bool blocked = false, found = false;
-    walk_line(
-        tets, normals, t, centre[t], sign * direction(p),
-        [&](std::int32_t u) {
-          if (u == kOpenSpace) {
-            blocked = true;
-            return true;
-          }
-          if (in(u)) {
-            found = blocked;
-            return !found;
-          }
-          blocked = blocked || !passable(u);
-          return true;
-        },
-        &reentry);
+    walk_line(tets, normals, t, centre[t], d, [&](std::int32_t u) {
+      if (in(u)) {
+        found = blocked;
+        return !found;
+      }
+      blocked = blocked || !passable(u);
+      return true;
+    });
     return found;
   }
 
@@ -237,8 +207,7 @@ bool give_away(Parts& s, const std::vector<std::int32_t>& piece, bool force) {
 // fills: tets of unsettled parts that p may take and that reach p along d and -d through such
 // tets only (and touch p through them) join p; or, when nothing is left to fill, cuts: p's tets
 // beyond a gap it may not fill (a settled part, another region, a tet its direction does not
-// allow, or open space beyond the undercut tolerance: the line leaves the solid and comes back
-// into p) leave p, on the side of the gap with less volume, each face-connected piece to a
+// allow) leave p, on the side of the gap with less volume, each face-connected piece to a
 // neighbour (give_away()).
 std::int32_t settle(Parts& s, std::int32_t p, std::int32_t max_rounds) {
   const std::int32_t n = static_cast<std::int32_t>(s.owner.size());
@@ -268,8 +237,8 @@ std::int32_t settle(Parts& s, std::int32_t p, std::int32_t max_rounds) {
       fill[t] = above[t] = below[t] = 0;
       if (s.region[t] != s.region_of[p]) return;
       if (in(t)) {
-        above[t] = s.blocked_gap(p, t, 1.0, in, passable);
-        below[t] = s.blocked_gap(p, t, -1.0, in, passable);
+        above[t] = s.blocked_gap(t, d, in, passable);
+        below[t] = s.blocked_gap(t, -d, in, passable);
       } else if (fillable(t)) {
         fill[t] = s.reaches(t, d, in, fillable) && s.reaches(t, -d, in, fillable);
       }
@@ -336,20 +305,20 @@ std::int32_t settle(Parts& s, std::int32_t p, std::int32_t max_rounds) {
 }
 
 // How far a labeling is from double height fields: the tets that lie between two tets of a part
-// of another label along that part's direction, or on one side of a gap of open space between
-// two of its own tets (the side with less volume), and the largest volume of such tets within
-// one part, as a share of that part's volume. (The share of a part's lines that leave it and
-// come back, estimated from the lines through its tets, chose worse labelings on the test
-// models.) within_part gets, per tet, the part it lies between two tets of, or -1.
+// of another label along that part's direction, and the largest volume of such tets within one
+// part, as a share of that part's volume. (The share of a part's lines that leave it and come
+// back, estimated from the lines through its tets, chose worse labelings on the test models.)
 struct Sandwiches {
   std::int32_t tets = 0;
   double worst_share = 0.0;
   std::int32_t parts = 0;
 };
-Sandwiches count_sandwiched(const Parts& s, const std::vector<std::int32_t>& label,
+Sandwiches count_sandwiched(const TetMesh& tets, const FaceNormals& normals,
+                            const std::vector<std::int32_t>& label,
+                            const std::vector<std::int32_t>& region,
+                            const std::vector<std::vector<Vec3>>& directions,
+                            const std::vector<Vec3>& centre, const std::vector<double>& volume,
                             std::vector<std::int32_t>* within_part = nullptr) {
-  const TetMesh& tets = s.tets;
-  const std::vector<std::int32_t>& region = s.region;
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
   Sandwiches out;
   const std::vector<std::int32_t> part = detail::label_components(tets, label, region, out.parts);
@@ -357,38 +326,22 @@ Sandwiches count_sandwiched(const Parts& s, const std::vector<std::int32_t>& lab
   for (std::int32_t t = 0; t < n; ++t) used.emplace_back(region[t], label[t]);
   std::sort(used.begin(), used.end());
   used.erase(std::unique(used.begin(), used.end()), used.end());
-  std::vector<std::int32_t> sandwiching(n, -1);        // a part tet t lies within
-  std::vector<char> below_gap(n, 0), above_gap(n, 0);  // of open space within t's own part
+  std::vector<std::int32_t> sandwiching(n, -1);  // a part tet t lies within
   tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
-    const Vec3& own = s.directions[region[t]][label[t]];
-    for (const double sign : {1.0, -1.0}) {
-      const Reentry reentry{s.boundary.at({region[t], label[t]}), sign, s.min_gap};
-      bool open = false, found = false;
-      walk_line(
-          tets, s.normals, t, s.centre[t], sign * own,
-          [&](std::int32_t u) {
-            if (u == kOpenSpace) return open = true;
-            if (part[u] != part[t]) return true;
-            found = open;
-            return !open;
-          },
-          &reentry);
-      (sign > 0 ? below_gap : above_gap)[t] = found;
-    }
     std::vector<std::int32_t> ahead;
     for (const auto& [r, l] : used) {
       if (sandwiching[t] >= 0) return;
       if (r != region[t] || l == label[t]) continue;
-      const Vec3& d = s.directions[r][l];
+      const Vec3& d = directions[r][l];
       ahead.clear();
-      walk_line(tets, s.normals, t, s.centre[t], d, [&](std::int32_t u) {
+      walk_line(tets, normals, t, centre[t], d, [&](std::int32_t u) {
         if (region[u] == r && label[u] == l &&
             std::find(ahead.begin(), ahead.end(), part[u]) == ahead.end())
           ahead.push_back(part[u]);
         return true;
       });
       if (ahead.empty()) continue;
-      walk_line(tets, s.normals, t, s.centre[t], -d, [&](std::int32_t u) {
+      walk_line(tets, normals, t, centre[t], -d, [&](std::int32_t u) {
         if (region[u] == r && label[u] == l &&
             std::find(ahead.begin(), ahead.end(), part[u]) != ahead.end())
           sandwiching[t] = part[u];
@@ -397,19 +350,12 @@ Sandwiches count_sandwiched(const Parts& s, const std::vector<std::int32_t>& lab
     }
   });
   std::vector<double> part_volume(out.parts, 0.0), within(out.parts, 0.0);
-  std::vector<double> below(out.parts, 0.0), above(out.parts, 0.0);
-  std::vector<std::int32_t> below_count(out.parts, 0), above_count(out.parts, 0);
   for (std::int32_t t = 0; t < n; ++t) {
-    part_volume[part[t]] += s.volume[t];
-    if (sandwiching[t] >= 0) within[sandwiching[t]] += s.volume[t], ++out.tets;
-    if (below_gap[t]) below[part[t]] += s.volume[t], ++below_count[part[t]];
-    if (above_gap[t]) above[part[t]] += s.volume[t], ++above_count[part[t]];
+    part_volume[part[t]] += volume[t];
+    if (sandwiching[t] >= 0) within[sandwiching[t]] += volume[t], ++out.tets;
   }
-  for (std::int32_t p = 0; p < out.parts; ++p) {
-    within[p] += std::min(below[p], above[p]);
-    out.tets += below[p] <= above[p] ? below_count[p] : above_count[p];
+  for (std::int32_t p = 0; p < out.parts; ++p)
     out.worst_share = std::max(out.worst_share, within[p] / part_volume[p]);
-  }
   if (within_part) *within_part = std::move(sandwiching);
   return out;
 }
@@ -501,7 +447,7 @@ void polish(Parts& s, std::vector<std::int32_t>& label, std::int32_t max_rounds)
   const std::int32_t n = static_cast<std::int32_t>(label.size());
   for (std::int32_t round = 0; round < max_rounds; ++round) {
     std::vector<std::int32_t> within;
-    count_sandwiched(s, label, &within);
+    count_sandwiched(s.tets, s.normals, label, s.region, s.directions, s.centre, s.volume, &within);
     std::int32_t num_parts = 0;
     s.owner = detail::label_components(s.tets, label, s.region, num_parts);
     s.label_of.assign(num_parts, -1);
@@ -563,11 +509,9 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
                                       const std::vector<std::int32_t>& region,
                                       const std::vector<std::vector<Vec3>>& directions,
                                       const TetAllowsLabel& allows, const SandwichOptions& opts) {
-  if (opts.max_rounds < 0 || !(opts.tiny_piece_share >= 0.0 && opts.tiny_piece_share <= 1.0) ||
-      !(opts.epsilon_mm >= 0.0))
+  if (opts.max_rounds < 0 || !(opts.tiny_piece_share >= 0.0 && opts.tiny_piece_share <= 1.0))
     throw Error(ErrorCode::InvalidOptions,
-                "sandwich repair: max_rounds and epsilon_mm must be >= 0 and tiny_piece_share in "
-                "[0, 1]");
+                "sandwich repair: max_rounds must be >= 0 and tiny_piece_share in [0, 1]");
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
   if (tets.neighbors.size() != tets.tets.size() || label.size() != tets.tets.size() ||
       region.size() != tets.tets.size())
@@ -579,23 +523,7 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
                   "sandwich repair: tet " + std::to_string(t) + " has no direction");
 
   const FaceNormals normals = face_normals(tets);
-  std::vector<Tri> faces;
-  std::vector<std::int32_t> face_tet;
-  for (std::int32_t t = 0; t < n; ++t)
-    for (int i = 0; i < 4; ++i)
-      if (tets.neighbors[t][i] < 0) {
-        const Tet& k = tets.tets[t];
-        faces.push_back({k[kTetFaces[i][0]], k[kTetFaces[i][1]], k[kTetFaces[i][2]]});
-        face_tet.push_back(t);
-      }
-  std::map<std::pair<std::int32_t, std::int32_t>, detail::OuterColumns> boundary;
-  for (std::int32_t t = 0; t < n; ++t)
-    if (!boundary.count({region[t], label[t]}))
-      boundary.emplace(
-          std::make_pair(region[t], label[t]),
-          detail::OuterColumns(tets.vertices, faces, face_tet, directions[region[t]][label[t]]));
-  Parts s{tets, normals, region, directions, allows, boundary, 2.0 * opts.epsilon_mm,
-          {},   {},      {},     {},         {},     {}};
+  Parts s{tets, normals, region, directions, allows, {}, {}, {}, {}, {}, {}};
   s.centre.resize(n);
   s.volume.resize(n);
   for (std::int32_t t = 0; t < n; ++t) {
@@ -606,7 +534,7 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
   }
   const std::vector<std::int32_t> initial = label;
   SandwichRepair repair;
-  Sandwiches best = count_sandwiched(s, label);
+  Sandwiches best = count_sandwiched(tets, normals, label, region, directions, s.centre, s.volume);
   if (opts.max_rounds > 0) {
     std::int32_t num_parts = 0;
     s.owner = detail::label_components(tets, label, region, num_parts);
@@ -632,7 +560,8 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
     for (int pass = 0; pass < 2; ++pass) {
       SandwichRepair tried;
       const std::vector<std::int32_t> result = settle_all(s, order, opts, tried);
-      const Sandwiches left = count_sandwiched(s, result);
+      const Sandwiches left =
+          count_sandwiched(tets, normals, result, region, directions, s.centre, s.volume);
       if (std::make_pair(left.worst_share, left.parts) <
           std::make_pair(best.worst_share, best.parts)) {
         best = left;
@@ -649,7 +578,8 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
     // chose, on armadillo, one the checker found worse.
     std::vector<std::int32_t> polished = label;
     polish(s, polished, opts.max_rounds);
-    const Sandwiches left = count_sandwiched(s, polished);
+    const Sandwiches left =
+        count_sandwiched(tets, normals, polished, region, directions, s.centre, s.volume);
     if (polished != label && left.worst_share <= best.worst_share && left.parts <= best.parts) {
       best = left;
       label = std::move(polished);

@@ -22,25 +22,17 @@ class OuterColumns {
   // the stretch of solid through x.
   std::pair<std::int32_t, std::int32_t> ends(const Vec3& x) const;
 
-  // The nearest outer triangle through which the line x + s * sign * d enters the solid at
-  // s > 0 (its normal points against sign * d): its owner and s; {-1, inf} where there is none.
-  std::pair<std::int32_t, double> next_entry(const Vec3& x, double sign) const;
-
  private:
   Vec3 d_, u_, w_;
   double u0_ = 0, w0_ = 0, cell_ = 1;
   std::int32_t nu_ = 1, nw_ = 1;
   std::vector<std::int32_t> cell_begin_, cell_triangles_;  // triangles per grid cell (CSR)
   struct Flat {
-    Vec3 a, n;                      // a corner and the (unnormalized) normal
-    double au, aw, bu, bw, cu, cw;  // projected corners
+    Vec3 a, n;                         // a corner and the (unnormalized) normal
+    double au, aw, bu, bw, cu, cw;     // projected corners
     std::int32_t owner;
   };
   std::vector<Flat> flat_;
-
-  // Calls f(flat) for every triangle whose projection along d contains x's.
-  template <class F>
-  void for_each_over(const Vec3& x, F&& f) const;
 };
 
 }  // namespace dhfcast::detail

@@ -255,10 +255,8 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
     merge_into_neighbours(d.tets, r.label, r.region);
     if (std::find(r.label.begin(), r.label.end(), -1) != r.label.end())
       throw Error(ErrorCode::Internal, "a tet region has no direction at all");
-    SandwichOptions sandwich = opts.sandwich;
-    sandwich.epsilon_mm = opts.access.epsilon_mm;
     r.repair = absorb_sandwiched_tets(d.tets, r.label, r.region, region_directions, region_allows,
-                                      sandwich);
+                                      opts.sandwich);
     const std::lock_guard lock(progress_mutex);
     segmentation_progress(0.5 + 0.5 * double(++repairs_done) / double(distinct.size()));
   });
