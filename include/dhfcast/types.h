@@ -62,6 +62,9 @@ Box3 bounding_box(const std::vector<Vec3>& points);
 double tet_volume(const TetMesh& mesh, std::int32_t t);
 // Sum of all tet volumes, mm^3.
 double total_volume(const TetMesh& mesh);
+// Normal of local face i of tet t, pointing out of a positively oriented tet; its length is
+// twice the face's area (mm^2).
+Vec3 tet_face_normal(const TetMesh& mesh, std::int32_t t, int i);
 // Area of local face i of tet t, mm^2.
 double tet_face_area(const TetMesh& mesh, std::int32_t t, int i);
 // Fills mesh.neighbors from mesh.tets. Throws Error{Internal} when a face is shared by more

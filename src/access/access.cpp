@@ -132,11 +132,7 @@ std::vector<SeamEdge> seam_edges(const TetMesh& tets, const RayScene& scene) {
     return x.edge != y.edge ? x.edge < y.edge : x.tet < y.tet;
   });
   auto face_normal = [&](const Entry& e) {
-    const Tet& k = tets.tets[e.tet];
-    const Vec3& a = tets.vertices[k[kTetFaces[e.face][0]]];
-    return (tets.vertices[k[kTetFaces[e.face][1]]] - a)
-        .cross(tets.vertices[k[kTetFaces[e.face][2]]] - a)
-        .normalized();
+    return tet_face_normal(tets, e.tet, e.face).normalized();
   };
 
   std::vector<SeamEdge> seams;

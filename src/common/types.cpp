@@ -51,12 +51,16 @@ double total_volume(const TetMesh& mesh) {
   return v;
 }
 
-double tet_face_area(const TetMesh& mesh, std::int32_t t, int i) {
+Vec3 tet_face_normal(const TetMesh& mesh, std::int32_t t, int i) {
   const Tet& k = mesh.tets[t];
   const Vec3& a = mesh.vertices[k[kTetFaces[i][0]]];
   const Vec3& b = mesh.vertices[k[kTetFaces[i][1]]];
   const Vec3& c = mesh.vertices[k[kTetFaces[i][2]]];
-  return 0.5 * (b - a).cross(c - a).norm();
+  return (b - a).cross(c - a);
+}
+
+double tet_face_area(const TetMesh& mesh, std::int32_t t, int i) {
+  return 0.5 * tet_face_normal(mesh, t, i).norm();
 }
 
 void build_tet_adjacency(TetMesh& mesh) {

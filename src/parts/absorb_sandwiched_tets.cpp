@@ -22,19 +22,15 @@ namespace {
 // neighbour its DHF property, or makes it touch itself.
 constexpr double kFragmentShare = 1e-4;
 
-// Per tet, the normal of each face i (kTetFaces[i]; its length twice the face's area), which
-// points out of the tet: computed once, as every line walk needs them at every step.
+// Per tet, tet_face_normal() of each face: computed once, as every line walk needs them at
+// every step.
 using FaceNormals = std::vector<std::array<Vec3, 4>>;
 
 FaceNormals face_normals(const TetMesh& tets) {
   FaceNormals normals(tets.tets.size());
   tbb::parallel_for(std::size_t{0}, tets.tets.size(), [&](std::size_t t) {
-    const Tet& k = tets.tets[t];
-    for (int i = 0; i < 4; ++i) {
-      const Vec3& a = tets.vertices[k[kTetFaces[i][0]]];
-      normals[t][i] =
-          (tets.vertices[k[kTetFaces[i][1]]] - a).cross(tets.vertices[k[kTetFaces[i][2]]] - a);
-    }
+    for (int i = 0; i < 4; ++i)
+      normals[t][i] = tet_face_normal(tets, static_cast<std::int32_t>(t), i);
   });
   return normals;
 }
@@ -313,12 +309,14 @@ struct Sandwiches {
   double worst_share = 0.0;
   std::int32_t parts = 0;
 };
-Sandwiches count_sandwiched(const TetMesh& tets, const FaceNormals& normals,
-                            const std::vector<std::int32_t>& label,
-                            const std::vector<std::int32_t>& region,
-                            const std::vector<std::vector<Vec3>>& directions,
-                            const std::vector<Vec3>& centre, const std::vector<double>& volume,
+Sandwiches count_sandwiched(const Parts& s, const std::vector<std::int32_t>& label,
                             std::vector<std::int32_t>* within_part = nullptr) {
+  const TetMesh& tets = s.tets;
+  const FaceNormals& normals = s.normals;
+  const std::vector<std::int32_t>& region = s.region;
+  const std::vector<std::vector<Vec3>>& directions = s.directions;
+  const std::vector<Vec3>& centre = s.centre;
+  const std::vector<double>& volume = s.volume;
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
   Sandwiches out;
   const std::vector<std::int32_t> part = detail::label_components(tets, label, region, out.parts);
@@ -447,7 +445,7 @@ void polish(Parts& s, std::vector<std::int32_t>& label, std::int32_t max_rounds)
   const std::int32_t n = static_cast<std::int32_t>(label.size());
   for (std::int32_t round = 0; round < max_rounds; ++round) {
     std::vector<std::int32_t> within;
-    count_sandwiched(s.tets, s.normals, label, s.region, s.directions, s.centre, s.volume, &within);
+    count_sandwiched(s, label, &within);
     std::int32_t num_parts = 0;
     s.owner = detail::label_components(s.tets, label, s.region, num_parts);
     s.label_of.assign(num_parts, -1);
@@ -534,7 +532,7 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
   }
   const std::vector<std::int32_t> initial = label;
   SandwichRepair repair;
-  Sandwiches best = count_sandwiched(tets, normals, label, region, directions, s.centre, s.volume);
+  Sandwiches best = count_sandwiched(s, label);
   if (opts.max_rounds > 0) {
     std::int32_t num_parts = 0;
     s.owner = detail::label_components(tets, label, region, num_parts);
@@ -560,8 +558,7 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
     for (int pass = 0; pass < 2; ++pass) {
       SandwichRepair tried;
       const std::vector<std::int32_t> result = settle_all(s, order, opts, tried);
-      const Sandwiches left =
-          count_sandwiched(tets, normals, result, region, directions, s.centre, s.volume);
+      const Sandwiches left = count_sandwiched(s, result);
       if (std::make_pair(left.worst_share, left.parts) <
           std::make_pair(best.worst_share, best.parts)) {
         best = left;
@@ -578,8 +575,7 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
     // chose, on armadillo, one the checker found worse.
     std::vector<std::int32_t> polished = label;
     polish(s, polished, opts.max_rounds);
-    const Sandwiches left =
-        count_sandwiched(tets, normals, polished, region, directions, s.centre, s.volume);
+    const Sandwiches left = count_sandwiched(s, polished);
     if (polished != label && left.worst_share <= best.worst_share && left.parts <= best.parts) {
       best = left;
       label = std::move(polished);
