@@ -1387,5 +1387,80 @@ TEST(CutPartsFromSolid, OuterSurfaceIsTheInputAndInterfacesStayShared) {
   EXPECT_TRUE(sides[0] == sides[1]);
 }
 
+// --- clearing a blocked part's way ---
+
+// A 3x3x3 box locked together: part P (label 0, leaves along z) is the middle layer but for
+// the cell (1, 0, 1), which joins part Q's top and bottom layers (label 1, leaves along x). P
+// runs into Q both up and down; Q's middle cell runs into P both ways along x.
+int locked_layers(const Cell& c) { return c[2] == 1 && !(c[0] == 1 && c[1] == 0) ? 0 : 1; }
+
+// Points inside the other parts on part p's way along dir: the middle of each stretch.
+std::vector<Vec3> obstacle_points(const std::vector<Part>& parts, std::int32_t p, const Vec3& dir) {
+  std::vector<Vec3> points;
+  for (const Obstruction& o : obstructions(parts, p, dir, kTolerance_mm))
+    points.push_back(0.5 * (o.from + o.to));
+  return points;
+}
+
+TEST(ClearWay, LockedLayersComeApartOnceTheTopIsInTheMiddlePartsWay) {
+  const Grid g = make_grid(3, 3, 3, 10.0);
+  const std::vector<std::vector<Vec3>> dirs{{kZ, kX}};
+  auto label = per_cell(g, locked_layers);
+  const auto parts = extract_parts(g.mesh, label, zeros(g), dirs);
+  ASSERT_EQ(parts.size(), 2u);
+  const std::int32_t p = parts[0].direction_index == 0 ? 0 : 1;
+  EXPECT_FALSE(plan_assembly(parts, {}, kTolerance_mm).found);
+  const std::vector<Vec3> points = obstacle_points(parts, p, kZ);
+  ASSERT_FALSE(points.empty());
+  for (const Vec3& x : points) EXPECT_GT(x.z(), 20.0);  // in Q's top layer
+
+  const std::vector<std::int32_t> moved =
+      clear_way(g.mesh, label, zeros(g), dirs, kAllowAll, parts[p].tets.front(), kZ, points);
+  // The top layer goes to P, but for the cell above Q's middle cell: no line down from it
+  // reaches P.
+  std::vector<std::int32_t> expected;
+  for (std::int32_t t = 0; t < static_cast<std::int32_t>(label.size()); ++t) {
+    const Cell& c = g.cell_of_tet[t];
+    if (c[2] == 2 && !(c[0] == 1 && c[1] == 0)) expected.push_back(t);
+  }
+  EXPECT_EQ(moved, expected);
+  for (std::int32_t t = 0; t < static_cast<std::int32_t>(label.size()); ++t) {
+    const Cell& c = g.cell_of_tet[t];
+    EXPECT_EQ(label[t], (c[2] >= 1 && !(c[0] == 1 && c[1] == 0)) ? 0 : 1) << "tet " << t;
+  }
+  const auto cleared = extract_parts(g.mesh, label, zeros(g), dirs);
+  ASSERT_EQ(cleared.size(), 2u);
+  const AssemblyPlan plan = plan_assembly(cleared, {}, kTolerance_mm);
+  EXPECT_TRUE(plan.found) << plan.message;
+}
+
+TEST(ClearWay, MovesThatWouldSplitAPartOrThatItsDirectionForbidsAreRefused) {
+  const Grid g = make_grid(3, 3, 3, 10.0);
+  const std::vector<std::vector<Vec3>> dirs{{kZ, kX}};
+  const auto start = per_cell(g, locked_layers);
+  const auto parts = extract_parts(g.mesh, start, zeros(g), dirs);
+  const std::int32_t p = parts[0].direction_index == 0 ? 0 : 1;
+  const std::vector<Vec3> points = obstacle_points(parts, p, kZ);
+  // P may not take the top layer's corner cell (2, 2, 2): taking the rest would leave it a
+  // piece of Q of its own.
+  const TetAllowsLabel corner_forbidden = [&](std::int32_t t, std::int32_t, std::int32_t l) {
+    const Cell& c = g.cell_of_tet[t];
+    return l != 0 || !(c[0] == 2 && c[1] == 2 && c[2] == 2);
+  };
+  auto label = start;
+  EXPECT_TRUE(
+      clear_way(g.mesh, label, zeros(g), dirs, corner_forbidden, parts[p].tets.front(), kZ, points)
+          .empty());
+  EXPECT_EQ(label, start);
+  // P may take nothing above its layer.
+  const TetAllowsLabel top_forbidden = [&](std::int32_t t, std::int32_t, std::int32_t l) {
+    return l != 0 || g.cell_of_tet[t][2] < 2;
+  };
+  EXPECT_TRUE(
+      clear_way(g.mesh, label, zeros(g), dirs, top_forbidden, parts[p].tets.front(), kZ, points)
+          .empty());
+  EXPECT_EQ(label, start);
+}
+
 }  // namespace
 }  // namespace dhfcast

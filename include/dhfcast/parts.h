@@ -112,6 +112,23 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
                                       const TetAllowsLabel& allows,
                                       const SandwichOptions& opts = {});
 
+// Clears the way out of a part along `dir` at the label level, where plan_assembly() found it
+// blocked: the part P is the face-connected component of equal (region, label) holding tet
+// part_tet. Tets of other parts that contain one of `obstacle_points` (points of P's way inside
+// them, from obstructions()) and that `allows` P's label are seeds; their parts are blockers.
+// The blockers' tets in P's way are the seeds and those from which a line along -dir reaches P
+// through tets of their own part that P may take; every face-connected piece of them that holds
+// a seed goes to P, and so does every piece a blocker then falls into, other than its largest,
+// that P may take whole. The move is made when it leaves no more face-connected parts and no
+// part with a larger share of sandwiched volume than before (or than 1e-3). Returns the tets
+// moved, ascending; none when refused (label as it was).
+// Pre: as for absorb_sandwiched_tets().
+std::vector<std::int32_t> clear_way(const TetMesh& tets, std::vector<std::int32_t>& label,
+                                    const std::vector<std::int32_t>& region,
+                                    const std::vector<std::vector<Vec3>>& directions,
+                                    const TetAllowsLabel& allows, std::int32_t part_tet,
+                                    const Vec3& dir, const std::vector<Vec3>& obstacle_points);
+
 // What make_parts_manifold() did.
 struct ManifoldRepair {
   std::int32_t rounds = 0;      // passes over the vertices that needed a fix
@@ -239,6 +256,7 @@ struct AssemblyPlan {
   // blocks[i] lists the parts that part i would run into when it leaves along removal[i].
   std::vector<std::vector<std::int32_t>> blocks;
   std::string message;  // when !found: which parts block each other
+  std::int32_t blocked = 0;  // parts left blocked (0 when found)
 };
 
 // The points plan_assembly() moves, per part: points just inside each part's boundary, near the
@@ -260,5 +278,16 @@ std::vector<std::vector<Vec3>> assembly_samples(const std::vector<Part>& parts);
 // meshes.
 AssemblyPlan plan_assembly(const std::vector<Part>& parts,
                            const std::vector<Vec3>& extra_directions, double tolerance_mm);
+
+// A stretch of a part's way out that runs through another part deeper than the tolerance.
+struct Obstruction {
+  std::int32_t part = -1;  // the part run into
+  Vec3 from, to;           // where the way enters and leaves it
+};
+
+// Where part p, leaving along dir, runs into other parts, as plan_assembly() finds it (the same
+// samples, rays and tolerance): every such stretch of every sample's way, in the samples' order.
+std::vector<Obstruction> obstructions(const std::vector<Part>& parts, std::int32_t p,
+                                      const Vec3& dir, double tolerance_mm);
 
 }  // namespace dhfcast

@@ -51,6 +51,15 @@ struct InaccessibleRegion {
 };
 
 // The result of decompose().
+// Tets given to a part blocked on its way out (clear_way()), when no assembly order existed.
+struct WayClearing {
+  std::int32_t direction_index = 0;  // of the part whose way was cleared
+  Vec3 direction;                    // the way: that part's +d or -d
+  std::int32_t tets = 0;
+  double volume_mm3 = 0.0;
+  std::int32_t blocked_before = 0, blocked_after = 0;  // parts left blocked
+};
+
 struct Decomposition {
   TetMesh tets;
   std::vector<Vec3> directions;
@@ -68,6 +77,7 @@ struct Decomposition {
   std::vector<InterfaceSmoothness> raw_smoothness, smoothness;
   InterfaceSmoothness outer_smoothness;
   AssemblyPlan assembly;
+  std::vector<WayClearing> way_clearings;  // in the order they were made
   std::vector<Mold> molds;  // one per part, in part order; empty when !make_molds
   double assembly_tolerance_mm = 0.0;  // depth into a part below which a move does not block
   StageTimes timings;

@@ -22,6 +22,10 @@ namespace {
 // neighbour its DHF property, or makes it touch itself.
 constexpr double kFragmentShare = 1e-4;
 
+// A part with less than this share of its volume sandwiched counts as a DHF at the tet level
+// (smoothing and the exact cut leave about no line that meets it twice).
+constexpr double kCleanShare = 1e-3;
+
 // Per tet, tet_face_normal() of each face: computed once, as every line walk needs them at
 // every step.
 using FaceNormals = std::vector<std::array<Vec3, 4>>;
@@ -501,6 +505,93 @@ void polish(Parts& s, std::vector<std::int32_t>& label, std::int32_t max_rounds)
   }
 }
 
+// Finds the tet that contains a point, through a uniform grid of the tets' bounding boxes.
+class TetLocator {
+ public:
+  explicit TetLocator(const TetMesh& tets) : tets_(tets) {
+    box_ = {Vec3::Constant(INFINITY), Vec3::Constant(-INFINITY)};
+    for (const Vec3& v : tets.vertices)
+      box_.min = box_.min.cwiseMin(v), box_.max = box_.max.cwiseMax(v);
+    // About one tet per cell.
+    const Vec3 size = (box_.max - box_.min).cwiseMax(1e-9);
+    const double cell = std::cbrt(size.prod() / std::max<std::size_t>(tets.tets.size(), 1));
+    for (int k = 0; k < 3; ++k) dims_[k] = std::clamp(static_cast<int>(size[k] / cell), 1, 512);
+    cells_.resize(static_cast<std::size_t>(dims_[0]) * dims_[1] * dims_[2]);
+    for (std::int32_t t = 0; t < static_cast<std::int32_t>(tets.tets.size()); ++t) {
+      Vec3 lo = Vec3::Constant(INFINITY), hi = Vec3::Constant(-INFINITY);
+      for (std::int32_t i : tets.tets[t])
+        lo = lo.cwiseMin(tets.vertices[i]), hi = hi.cwiseMax(tets.vertices[i]);
+      const std::array<int, 3> a = cell_of(lo), b = cell_of(hi);
+      for (int x = a[0]; x <= b[0]; ++x)
+        for (int y = a[1]; y <= b[1]; ++y)
+          for (int z = a[2]; z <= b[2]; ++z) cells_[index({x, y, z})].push_back(t);
+    }
+  }
+
+  // The tet containing p (the first in index order when p is on a shared face), or -1.
+  std::int32_t locate(const Vec3& p) const {
+    for (int k = 0; k < 3; ++k)
+      if (!(p[k] >= box_.min[k] && p[k] <= box_.max[k])) return -1;
+    for (std::int32_t t : cells_[index(cell_of(p))]) {
+      const Tet& k = tets_.tets[t];
+      const Vec3& a = tets_.vertices[k[0]];
+      Eigen::Matrix3d m;
+      m << tets_.vertices[k[1]] - a, tets_.vertices[k[2]] - a, tets_.vertices[k[3]] - a;
+      const Vec3 w = m.fullPivLu().solve(p - a);
+      constexpr double kSlack = 1e-9;
+      if (w.minCoeff() >= -kSlack && w.sum() <= 1.0 + kSlack) return t;
+    }
+    return -1;
+  }
+
+ private:
+  std::array<int, 3> cell_of(const Vec3& p) const {
+    std::array<int, 3> c;
+    for (int k = 0; k < 3; ++k)
+      c[k] = std::clamp(
+          static_cast<int>((p[k] - box_.min[k]) / (box_.max[k] - box_.min[k]) * dims_[k]), 0,
+          dims_[k] - 1);
+    return c;
+  }
+  std::size_t index(const std::array<int, 3>& c) const {
+    return (static_cast<std::size_t>(c[2]) * dims_[1] + c[1]) * dims_[0] + c[0];
+  }
+
+  const TetMesh& tets_;
+  Box3 box_;
+  std::array<int, 3> dims_{1, 1, 1};
+  std::vector<std::vector<std::int32_t>> cells_;
+};
+
+Parts make_state(const TetMesh& tets, const FaceNormals& normals,
+                 const std::vector<std::int32_t>& region,
+                 const std::vector<std::vector<Vec3>>& directions, const TetAllowsLabel& allows) {
+  const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
+  Parts s{tets, normals, region, directions, allows, {}, {}, {}, {}, {}, {}};
+  s.centre.resize(n);
+  s.volume.resize(n);
+  for (std::int32_t t = 0; t < n; ++t) {
+    const Tet& k = tets.tets[t];
+    s.centre[t] = 0.25 * (tets.vertices[k[0]] + tets.vertices[k[1]] + tets.vertices[k[2]] +
+                          tets.vertices[k[3]]);
+    s.volume[t] = tet_volume(tets, t);
+  }
+  return s;
+}
+
+void check_labeling(const TetMesh& tets, const std::vector<std::int32_t>& label,
+                    const std::vector<std::int32_t>& region,
+                    const std::vector<std::vector<Vec3>>& directions) {
+  if (tets.neighbors.size() != tets.tets.size() || label.size() != tets.tets.size() ||
+      region.size() != tets.tets.size())
+    throw Error(ErrorCode::Internal, "sandwich repair: one label, region and adjacency per tet");
+  for (std::size_t t = 0; t < tets.tets.size(); ++t)
+    if (region[t] < 0 || static_cast<std::size_t>(region[t]) >= directions.size() || label[t] < 0 ||
+        static_cast<std::size_t>(label[t]) >= directions[region[t]].size())
+      throw Error(ErrorCode::Internal,
+                  "sandwich repair: tet " + std::to_string(t) + " has no direction");
+}
+
 }  // namespace
 
 SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int32_t>& label,
@@ -511,25 +602,9 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
     throw Error(ErrorCode::InvalidOptions,
                 "sandwich repair: max_rounds must be >= 0 and tiny_piece_share in [0, 1]");
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
-  if (tets.neighbors.size() != tets.tets.size() || label.size() != tets.tets.size() ||
-      region.size() != tets.tets.size())
-    throw Error(ErrorCode::Internal, "sandwich repair: one label, region and adjacency per tet");
-  for (std::int32_t t = 0; t < n; ++t)
-    if (region[t] < 0 || static_cast<std::size_t>(region[t]) >= directions.size() || label[t] < 0 ||
-        static_cast<std::size_t>(label[t]) >= directions[region[t]].size())
-      throw Error(ErrorCode::Internal,
-                  "sandwich repair: tet " + std::to_string(t) + " has no direction");
-
+  check_labeling(tets, label, region, directions);
   const FaceNormals normals = face_normals(tets);
-  Parts s{tets, normals, region, directions, allows, {}, {}, {}, {}, {}, {}};
-  s.centre.resize(n);
-  s.volume.resize(n);
-  for (std::int32_t t = 0; t < n; ++t) {
-    const Tet& k = tets.tets[t];
-    s.centre[t] = 0.25 * (tets.vertices[k[0]] + tets.vertices[k[1]] + tets.vertices[k[2]] +
-                          tets.vertices[k[3]]);
-    s.volume[t] = tet_volume(tets, t);
-  }
+  Parts s = make_state(tets, normals, region, directions, allows);
   const std::vector<std::int32_t> initial = label;
   SandwichRepair repair;
   Sandwiches best = count_sandwiched(s, label);
@@ -600,6 +675,91 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
   }
   for (const auto& [key, m] : moves) repair.moves.push_back(m);
   return repair;
+}
+
+std::vector<std::int32_t> clear_way(const TetMesh& tets, std::vector<std::int32_t>& label,
+                                    const std::vector<std::int32_t>& region,
+                                    const std::vector<std::vector<Vec3>>& directions,
+                                    const TetAllowsLabel& allows, std::int32_t part_tet,
+                                    const Vec3& dir, const std::vector<Vec3>& obstacle_points) {
+  const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
+  check_labeling(tets, label, region, directions);
+  if (part_tet < 0 || part_tet >= n) throw Error(ErrorCode::Internal, "clear_way: no such tet");
+  const FaceNormals normals = face_normals(tets);
+  Parts s = make_state(tets, normals, region, directions, allows);
+  std::int32_t num_parts = 0;
+  s.owner = detail::label_components(tets, label, region, num_parts);
+  s.label_of.assign(num_parts, -1);
+  s.region_of.assign(num_parts, -1);
+  s.frozen.assign(num_parts, 1);
+  for (std::int32_t t = 0; t < n; ++t)
+    if (s.label_of[s.owner[t]] < 0)
+      s.label_of[s.owner[t]] = label[t], s.region_of[s.owner[t]] = region[t];
+  const std::int32_t p = s.owner[part_tet];
+
+  std::vector<char> seed(n, 0), blocker(num_parts, 0);
+  const TetLocator locator(tets);
+  for (const Vec3& x : obstacle_points) {
+    const std::int32_t t = locator.locate(x);
+    if (t >= 0 && s.owner[t] != p && s.may_join(t, p)) seed[t] = 1, blocker[s.owner[t]] = 1;
+  }
+  // Tets of the blockers that p's way along dir runs into through tets of their own part that p
+  // may take, and that p may take.
+  std::vector<char> ahead(n, 0);
+  tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
+    const std::int32_t q = s.owner[t];
+    if (!blocker[q] || !s.may_join(t, p)) return;
+    ahead[t] = seed[t] || s.reaches(
+                              t, -dir, [&](std::int32_t u) { return s.owner[u] == p; },
+                              [&](std::int32_t u) { return s.owner[u] == q && s.may_join(u, p); });
+  });
+  std::vector<std::int32_t> move;
+  for (const std::vector<std::int32_t>& piece : marked_components(tets, ahead)) {
+    // Whole face-connected pieces where the way is found blocked.
+    if (std::none_of(piece.begin(), piece.end(), [&](std::int32_t t) { return seed[t] != 0; }))
+      continue;
+    move.insert(move.end(), piece.begin(), piece.end());
+  }
+  if (move.empty()) return {};
+  for (std::int32_t t : move) s.owner[t] = p;
+  // Pieces the blockers fall into, other than the largest of each, go to p too when it may take
+  // them all: slivers left between the tets moved and the surface.
+  std::vector<std::int32_t> moved_label = label;
+  for (std::int32_t t : move) moved_label[t] = s.label_of[p];
+  std::int32_t num_pieces = 0;
+  const std::vector<std::int32_t> piece_of =
+      detail::label_components(tets, moved_label, region, num_pieces);
+  std::vector<double> piece_volume(num_pieces, 0.0);
+  std::vector<std::vector<std::int32_t>> members(num_pieces);
+  for (std::int32_t t = 0; t < n; ++t)
+    if (blocker[s.owner[t]] && s.owner[t] != p)
+      piece_volume[piece_of[t]] += s.volume[t], members[piece_of[t]].push_back(t);
+  std::vector<std::int32_t> largest(num_parts, -1);
+  for (std::int32_t c = 0; c < num_pieces; ++c) {
+    if (members[c].empty()) continue;
+    std::int32_t& l = largest[s.owner[members[c].front()]];
+    if (l < 0 || piece_volume[c] > piece_volume[l]) l = c;
+  }
+  for (std::int32_t c = 0; c < num_pieces; ++c) {
+    if (members[c].empty() || largest[s.owner[members[c].front()]] == c) continue;
+    if (std::all_of(members[c].begin(), members[c].end(),
+                    [&](std::int32_t t) { return s.may_join(t, p); })) {
+      for (std::int32_t t : members[c]) s.owner[t] = p;
+    } else {
+      give_away(s, members[c], false);
+    }
+  }
+  move.clear();
+  for (std::int32_t t = 0; t < n; ++t) {
+    moved_label[t] = s.label_of[s.owner[t]];
+    if (moved_label[t] != label[t]) move.push_back(t);
+  }
+  const Sandwiches before = count_sandwiched(s, label);
+  const Sandwiches after = count_sandwiched(s, moved_label);
+  if (after.parts > before.parts || after.worst_share > std::max(before.worst_share, kCleanShare))
+    return {};
+  label = std::move(moved_label);
+  return move;
 }
 
 }  // namespace dhfcast

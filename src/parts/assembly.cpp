@@ -186,13 +186,19 @@ std::vector<Vec3> boundary_samples(const TriMesh& mesh, double spacing, double i
   return samples;
 }
 
-// Parts whose interior the ray from a point of part `self` runs through, given its crossings
-// sorted by t, where deep(part, t_in, t_out) says the stretch inside goes deeper than
+// A stretch of a ray inside another part.
+struct Stretch {
+  std::int32_t part;
+  double t_in, t_out;
+};
+
+// The stretches through other parts' interiors of the ray from a point of part `self`, given its
+// crossings sorted by t, where deep(part, t_in, t_out) says the stretch goes deeper than
 // tolerance_mm. entered_at (one slot per part, all -1) is scratch space, left all -1 again.
 template <class Deep>
 void mark_obstacles(const std::vector<Crossing>& crossings, std::int32_t self, double tolerance_mm,
                     const Deep& deep, std::vector<std::int32_t>& entered_at,
-                    std::vector<std::int32_t>& found) {
+                    std::vector<Stretch>& found) {
   found.clear();
   for (std::size_t k = 0; k < crossings.size(); ++k) {
     const Crossing& c = crossings[k];
@@ -210,7 +216,8 @@ void mark_obstacles(const std::vector<Crossing>& crossings, std::int32_t self, d
     } else if (entry >= 0) {
       // Every point of a stretch is within half its length of its ends, on the surface.
       const double t_in = crossings[entry].t_mm;
-      if (c.t_mm - t_in > 2 * tolerance_mm && deep(c.part, t_in, c.t_mm)) found.push_back(c.part);
+      if (c.t_mm - t_in > 2 * tolerance_mm && deep(c.part, t_in, c.t_mm))
+        found.push_back({c.part, t_in, c.t_mm});
       entry = -1;
     }
   }
@@ -284,7 +291,8 @@ class Collisions {
     std::atomic<bool> blocked{false};
     for_each_obstacle(
         p, dir,
-        [&](std::int32_t q) {
+        [&](std::size_t, const Stretch& stretch) {
+          const std::int32_t q = stretch.part;
           if (!among[q]) return;
           std::int32_t none = -1;
           found.compare_exchange_strong(none, q);
@@ -298,16 +306,36 @@ class Collisions {
   std::vector<std::int32_t> blockers(std::int32_t p, const Vec3& dir) const {
     std::vector<std::atomic<bool>> hit(static_cast<std::size_t>(num_parts_));
     for_each_obstacle(
-        p, dir, [&](std::int32_t q) { hit[q].store(true, std::memory_order_relaxed); }, nullptr);
+        p, dir,
+        [&](std::size_t, const Stretch& stretch) {
+          hit[stretch.part].store(true, std::memory_order_relaxed);
+        },
+        nullptr);
     std::vector<std::int32_t> out;
     for (std::int32_t q = 0; q < num_parts_; ++q)
       if (hit[q].load()) out.push_back(q);
     return out;
   }
 
+  // Every stretch through another part's interior of the ways of part p's samples along dir, in
+  // the samples' order.
+  std::vector<Obstruction> obstructions(std::int32_t p, const Vec3& dir) const {
+    std::vector<std::vector<Stretch>> per_sample(samples_[p].size());
+    std::vector<Obstruction> out;
+    for_each_obstacle(
+        p, dir, [&](std::size_t s, const Stretch& stretch) { per_sample[s].push_back(stretch); },
+        nullptr);
+    for (std::size_t s = 0; s < per_sample.size(); ++s)
+      for (const Stretch& stretch : per_sample[s])
+        out.push_back({stretch.part, samples_[p][s] + stretch.t_in * dir,
+                       samples_[p][s] + stretch.t_out * dir});
+    return out;
+  }
+
  private:
-  // Calls obstacle(q), from several threads, for each part q a ray from a sample of p along dir
-  // runs through; gives up early once *stop is set.
+  // Calls obstacle(sample index, stretch), from several threads, for each stretch through
+  // another part's interior of the ray from a sample of p along dir; gives up early once *stop
+  // is set.
   template <class Obstacle>
   void for_each_obstacle(std::int32_t p, const Vec3& dir, const Obstacle& obstacle,
                          const std::atomic<bool>* stop) const {
@@ -316,7 +344,8 @@ class Collisions {
                       [&](const tbb::blocked_range<std::size_t>& range) {
                         std::vector<std::uint64_t> hits;
                         std::vector<Crossing> crossings;
-                        std::vector<std::int32_t> entered_at(num_parts_, -1), found;
+                        std::vector<std::int32_t> entered_at(num_parts_, -1);
+                        std::vector<Stretch> found;
                         for (std::size_t s = range.begin(); s != range.end(); ++s) {
                           if (stop && stop->load(std::memory_order_relaxed)) return;
                           scene_.crossings(samples[s], dir, hits, crossings);
@@ -335,7 +364,7 @@ class Collisions {
                             return false;
                           };
                           mark_obstacles(crossings, p, tolerance_mm_, deep, entered_at, found);
-                          for (const std::int32_t q : found) obstacle(q);
+                          for (const Stretch& stretch : found) obstacle(s, stretch);
                         }
                       });
   }
@@ -416,6 +445,7 @@ AssemblyPlan plan_assembly(const std::vector<Part>& parts,
     plan.blocks[p] = collisions.blockers(p, plan.removal[p]);
   }
   plan.found = static_cast<std::int32_t>(removed.size()) == n;
+  plan.blocked = n - static_cast<std::int32_t>(removed.size());
   plan.order.assign(removed.rbegin(), removed.rend());
   if (!plan.found) {
     plan.message = blocking_cycle(plan.blocks, remaining);
@@ -423,6 +453,15 @@ AssemblyPlan plan_assembly(const std::vector<Part>& parts,
       if (remaining[p]) plan.order.push_back(p);
   }
   return plan;
+}
+
+std::vector<Obstruction> obstructions(const std::vector<Part>& parts, std::int32_t p,
+                                      const Vec3& dir, double tolerance_mm) {
+  if (!(tolerance_mm >= 0.0) || !std::isfinite(tolerance_mm))
+    throw Error(ErrorCode::InvalidOptions, "assembly tolerance_mm must be >= 0");
+  if (p < 0 || p >= static_cast<std::int32_t>(parts.size()))
+    throw Error(ErrorCode::Internal, "parts: no part " + std::to_string(p));
+  return Collisions(parts, tolerance_mm).obstructions(p, dir);
 }
 
 }  // namespace dhfcast

@@ -19,6 +19,9 @@ namespace {
 // Directions over the sphere a part may leave along when its own +-d are blocked.
 constexpr std::int32_t kAssemblyDirections = 64;
 
+// Ways out cleared at most, one per round, when no assembly order exists (see clear_way()).
+constexpr int kMaxWayClearings = 8;
+
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
@@ -130,6 +133,92 @@ std::int32_t count_labels(std::vector<std::int32_t> label) {
   label.erase(std::unique(label.begin(), label.end()), label.end());
   return static_cast<std::int32_t>(std::count_if(label.begin(), label.end(),
                                                  [](std::int32_t l) { return l >= 0; }));
+}
+
+// What the parts stage makes of one labeling.
+struct PartsStage {
+  std::vector<std::int32_t> label;  // after make_parts_manifold()
+  ManifoldRepair manifold;
+  std::vector<Part> parts;
+  std::vector<InterfaceSmoothness> raw_smoothness, smoothness;
+  InterfaceSmoothness outer_smoothness;
+  SolidCut solid_cut;
+  AssemblyPlan assembly;
+  double assembly_tolerance_mm = 0.0;
+};
+
+// Parts of a labeling: made manifold, extracted, their interfaces smoothed, cut from the solid
+// when asked, and ordered for assembly.
+PartsStage make_parts(const TriMesh& solid, const TetMesh& tets, std::vector<std::int32_t> label,
+                      const std::vector<std::int32_t>& region,
+                      const std::vector<std::vector<Vec3>>& region_directions,
+                      const AccessibilityField& access, const DecomposeOptions& opts,
+                      const std::vector<Vec3>& sphere_directions) {
+  PartsStage out;
+  // A part whose tets meet only along an edge or at a vertex would touch itself there. Regions
+  // decomposed again keep no accessibility here: their tets may take any label of the region.
+  out.manifold =
+      make_parts_manifold(tets, label, region, [&](std::int32_t t, std::int32_t r, std::int32_t l) {
+        return r != 0 || access.feasible.get(t, l);
+      });
+  out.label = std::move(label);
+  out.parts = extract_parts(tets, out.label, region, region_directions);
+  // Parts of a region decomposed again carry that region's own accessibility, which is not kept:
+  // their interfaces stay as they are.
+  const TetAllowsPart allows = [&](std::int32_t t, std::int32_t p) {
+    const Part& part = out.parts[p];
+    return part.region == 0 && access.feasible.get(t, part.direction_index);
+  };
+  out.raw_smoothness = interface_smoothness(out.parts);
+  smooth_interfaces(tets, out.parts, allows, opts.smoothing);
+  out.smoothness = interface_smoothness(out.parts);
+  out.outer_smoothness = outer_surface_smoothness(out.parts);
+  if (opts.exact_outer_surface) out.solid_cut = cut_parts_from_solid(solid, out.parts);
+  // A part leaves along its own +-d when it can, else along another part's (interfaces follow
+  // them) or one of a coarse set of directions over the sphere. A move counts as blocked when it
+  // goes deeper than epsilon / 2 into another part: half what `dhfcast check` allows, as check
+  // draws other points of the surface. When no order exists with that margin, the margin
+  // shrinks: an order closer to check's limit is still one that check can confirm.
+  std::vector<Vec3> removal_directions;
+  for (const Part& p : out.parts)
+    removal_directions.insert(removal_directions.end(), {p.direction, -p.direction});
+  removal_directions.insert(removal_directions.end(), sphere_directions.begin(),
+                            sphere_directions.end());
+  for (double share : {0.5, 0.75, 0.95}) {
+    out.assembly_tolerance_mm = share * opts.access.epsilon_mm;
+    out.assembly = plan_assembly(out.parts, removal_directions, out.assembly_tolerance_mm);
+    if (out.assembly.found) break;
+  }
+  return out;
+}
+
+// A way out of a part along a direction, and where it is blocked by parts left blocked.
+struct Way {
+  std::size_t stretches = 0;  // obstructions() among blocked parts
+  std::int32_t part = 0;
+  Vec3 dir;
+  std::vector<Vec3> points;  // inside the blocking parts, about a tet apart along each stretch
+};
+
+Way blocked_way(const PartsStage& stage, std::int32_t p, const Vec3& dir,
+                const std::vector<bool>& blocked, double tet_size) {
+  Way way{0, p, dir, {}};
+  for (const Obstruction& o : obstructions(stage.parts, p, dir, stage.assembly_tolerance_mm)) {
+    if (!blocked[o.part]) continue;
+    ++way.stretches;
+    const int steps = std::clamp(static_cast<int>((o.to - o.from).norm() / tet_size), 1, 64);
+    for (int i = 0; i < steps; ++i)
+      way.points.push_back(o.from + (i + 0.5) / steps * (o.to - o.from));
+  }
+  return way;
+}
+
+// Which parts a plan leaves blocked.
+std::vector<bool> blocked_parts(const AssemblyPlan& plan) {
+  std::vector<bool> blocked(plan.order.size(), false);
+  for (std::size_t k = plan.order.size() - plan.blocked; k < plan.order.size(); ++k)
+    blocked[plan.order[k]] = true;
+  return blocked;
 }
 
 }  // namespace
@@ -276,39 +365,80 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   // --- 4. parts and assembly order ---
   t0 = Clock::now();
   report("parts", 0.0);
-  // A part whose tets meet only along an edge or at a vertex would touch itself there. Regions
-  // decomposed again keep no accessibility here: their tets may take any label of the region.
-  d.manifold = make_parts_manifold(
-      d.tets, label, region,
-      [&](std::int32_t t, std::int32_t r, std::int32_t l) {
-        return r != 0 || d.access.feasible.get(t, l);
-      });
-  d.parts = extract_parts(d.tets, label, region, region_directions);
-  // Parts of a region decomposed again carry that region's own accessibility, which is not kept:
-  // their interfaces stay as they are.
-  const TetAllowsPart allows = [&](std::int32_t t, std::int32_t p) {
-    const Part& part = d.parts[p];
-    return part.region == 0 && d.access.feasible.get(t, part.direction_index);
+  // Regions decomposed again keep no accessibility here: their tets may take any label of the
+  // region, and their parts keep their interfaces as they are.
+  const TetAllowsLabel label_allows = [&](std::int32_t t, std::int32_t r, std::int32_t l) {
+    return r != 0 || d.access.feasible.get(t, l);
   };
-  d.raw_smoothness = interface_smoothness(d.parts);
-  smooth_interfaces(d.tets, d.parts, allows, opts.smoothing);
-  d.smoothness = interface_smoothness(d.parts);
-  d.outer_smoothness = outer_surface_smoothness(d.parts);
-  if (opts.exact_outer_surface) d.solid_cut = cut_parts_from_solid(solid, d.parts);
-  // A part leaves along its own +-d when it can, else along another part's (interfaces follow
-  // them) or one of a coarse set of directions over the sphere. A move counts as blocked when it
-  // goes deeper than epsilon / 2 into another part: half what `dhfcast check` allows, as check
-  // draws other points of the surface. When no order exists with that margin, the margin
-  // shrinks: an order closer to check's limit is still one that check can confirm.
   std::vector<Vec3> removal_directions;
-  for (const Part& p : d.parts)
-    removal_directions.insert(removal_directions.end(), {p.direction, -p.direction});
   for (const Vec3& v : fibonacci_directions(kAssemblyDirections)) removal_directions.push_back(v);
-  for (double share : {0.5, 0.75, 0.95}) {
-    d.assembly_tolerance_mm = share * opts.access.epsilon_mm;
-    d.assembly = plan_assembly(d.parts, removal_directions, d.assembly_tolerance_mm);
-    if (d.assembly.found) break;
+  PartsStage stage = make_parts(solid, d.tets, label, region, region_directions, d.access, opts,
+                                removal_directions);
+  // When no order exists, a blocked part takes the tets of other parts in its way along +d or -d
+  // (clear_way()), the side with fewer blocked stretches first, and the parts are made again;
+  // kept when fewer parts are left blocked, or the same ones with fewer stretches of that way
+  // blocked.
+  std::vector<WayClearing> clearings;
+  double tets_volume = 0.0;
+  for (std::size_t t = 0; t < num_tets; ++t)
+    tets_volume += tet_volume(d.tets, static_cast<std::int32_t>(t));
+  const double tet_size = std::cbrt(tets_volume / std::max<double>(1.0, num_tets));
+  for (int round = 0; round < kMaxWayClearings && !stage.assembly.found; ++round) {
+    std::vector<Way> ways;
+    const std::vector<bool> blocked = blocked_parts(stage.assembly);
+    for (std::int32_t p = 0; p < static_cast<std::int32_t>(stage.parts.size()); ++p) {
+      if (!blocked[p] || stage.parts[p].region != 0) continue;
+      for (const Vec3& dir : {stage.parts[p].direction, Vec3(-stage.parts[p].direction)}) {
+        Way way = blocked_way(stage, p, dir, blocked, tet_size);
+        if (way.stretches > 0) ways.push_back(std::move(way));
+      }
+    }
+    std::stable_sort(ways.begin(), ways.end(),
+                     [](const Way& a, const Way& b) { return a.stretches < b.stretches; });
+    bool cleared = false;
+    for (const Way& way : ways) {
+      std::vector<std::int32_t> cleared_label = stage.label;
+      const std::vector<std::int32_t> moved =
+          clear_way(d.tets, cleared_label, region, region_directions, label_allows,
+                    stage.parts[way.part].tets.front(), way.dir, way.points);
+      if (moved.empty()) continue;
+      PartsStage tried = make_parts(solid, d.tets, cleared_label, region, region_directions,
+                                    d.access, opts, removal_directions);
+      // Progress: fewer parts blocked, or the same ones with fewer stretches of this way blocked.
+      if (tried.assembly.blocked > stage.assembly.blocked) continue;
+      if (tried.assembly.blocked == stage.assembly.blocked) {
+        const std::int32_t tet = stage.parts[way.part].tets.front();
+        const auto same = std::find_if(tried.parts.begin(), tried.parts.end(), [&](const Part& q) {
+          return std::binary_search(q.tets.begin(), q.tets.end(), tet);
+        });
+        if (same == tried.parts.end() ||
+            blocked_way(tried, same->id, way.dir, blocked_parts(tried.assembly), tet_size)
+                    .stretches >= way.stretches)
+          continue;
+      }
+      WayClearing c;
+      c.direction = way.dir;
+      c.direction_index = stage.parts[way.part].direction_index;
+      c.tets = static_cast<std::int32_t>(moved.size());
+      for (std::int32_t t : moved) c.volume_mm3 += tet_volume(d.tets, t);
+      c.blocked_before = stage.assembly.blocked;
+      c.blocked_after = tried.assembly.blocked;
+      clearings.push_back(c);
+      stage = std::move(tried);
+      cleared = true;
+      break;
+    }
+    if (!cleared) break;
   }
+  d.manifold = std::move(stage.manifold);
+  d.parts = std::move(stage.parts);
+  d.raw_smoothness = std::move(stage.raw_smoothness);
+  d.smoothness = std::move(stage.smoothness);
+  d.outer_smoothness = stage.outer_smoothness;
+  d.solid_cut = std::move(stage.solid_cut);
+  d.assembly = std::move(stage.assembly);
+  d.assembly_tolerance_mm = stage.assembly_tolerance_mm;
+  d.way_clearings = std::move(clearings);
   report("parts", 1.0);
   d.timings.parts = seconds_since(t0);
 

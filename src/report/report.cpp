@@ -179,6 +179,15 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                           {"merged_tets", d.sandwich.merged_tets},
                           {"forced_tets", d.sandwich.forced_tets},
                           {"moves", moves}};
+  ordered_json clearings = ordered_json::array();
+  for (const WayClearing& c : d.way_clearings)
+    clearings.push_back({{"direction_index", c.direction_index},
+                         {"direction", vec(c.direction)},
+                         {"tets", c.tets},
+                         {"volume_mm3", c.volume_mm3},
+                         {"blocked_parts_before", c.blocked_before},
+                         {"blocked_parts_after", c.blocked_after}});
+  j["assembly_repair"] = clearings;
   j["manifold_repair"] = {{"moved_tets", d.manifold.moved_tets},
                           {"moved_volume_mm3", d.manifold.moved_volume_mm3},
                           {"nonmanifold_vertices", d.manifold.nonmanifold_vertices}};
