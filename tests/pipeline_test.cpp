@@ -324,6 +324,25 @@ TEST(Pipeline, FertilitysBlockedWayIsClearedAndCheckConfirmsTheOrder) {
     }
 }
 
+// Doubletorus at the paper's tet count: the candidate ranked first makes two parts that lock
+// together whatever way is cleared; another competing candidate's parts come apart, and that
+// one is kept.
+TEST(Pipeline, DoubletorusKeepsACandidateWhosePartsComeApart) {
+  const std::string path = test::extra_model("doubletorus.stl");
+  if (path.empty()) GTEST_SKIP() << "extended models absent (set DHFCAST_MODELS_DIR)";
+  const TriMesh input = test::load_scaled(path, 0.0);
+  DecomposeOptions opts;
+  opts.tets.target_tets = 19527;
+  opts.make_molds = false;
+  const Decomposition d = decompose(input, opts);
+  EXPECT_TRUE(d.assembly.found) << d.assembly.message;
+  const CheckReport report = check_written(input, opts, d, "doubletorus");
+  for (const CheckItem& item : report.items)
+    if (item.name == "assembly" || item.name == "dhf") {
+      EXPECT_TRUE(item.passed) << item.name << ": " << item.summary;
+    }
+}
+
 TEST(Pipeline, ConvexSolidIsOnePart) {
   const TriMesh box = test::make_box(Vec3(0, 0, 0), Vec3(40, 30, 20));
   const DecomposeOptions opts = fast_options(3000);

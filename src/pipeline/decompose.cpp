@@ -109,22 +109,32 @@ struct RepairedCandidate {
 // no line that meets a part twice.
 constexpr double kCleanShare = 1e-3;
 
-// The candidate to keep: those whose worst part has at most twice the smallest share of
-// sandwiched volume found (or kCleanShare, if larger) compete; among them the fewest parts win,
-// then the smaller share, then the segmentation's own order (smaller variance of part volumes,
-// then lower energy, then index).
-RepairedCandidate& pick_candidate(std::vector<RepairedCandidate>& repaired,
-                                  const std::vector<LabelingCandidate>& candidates) {
+// The candidates in the order they are kept: those whose worst part has at most twice the
+// smallest share of sandwiched volume found (or kCleanShare, if larger) compete, and come first;
+// among them the fewest parts first, then the smaller share, then the segmentation's own order
+// (smaller variance of part volumes, then lower energy, then index). Returns indices into
+// `repaired` and, in `competing`, how many compete.
+std::vector<std::size_t> rank_candidates(const std::vector<RepairedCandidate>& repaired,
+                                         const std::vector<LabelingCandidate>& candidates,
+                                         std::size_t& competing) {
   double least = INFINITY;
   for (const RepairedCandidate& r : repaired) least = std::min(least, r.repair.worst_share);
   const double cap = std::max(kCleanShare, 2 * least);
-  const auto key = [&](const RepairedCandidate& r) {
+  const auto key = [&](std::size_t i) {
+    const RepairedCandidate& r = repaired[i];
     const LabelingCandidate& c = candidates[r.index];
     return std::make_tuple(r.repair.worst_share > cap, r.repair.parts, r.repair.worst_share,
                            c.volume_variance_mm6, c.energy, c.restart);
   };
-  return *std::min_element(repaired.begin(), repaired.end(),
-                           [&](const auto& a, const auto& b) { return key(a) < key(b); });
+  std::vector<std::size_t> order(repaired.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return key(a) < key(b); });
+  competing =
+      static_cast<std::size_t>(std::count_if(repaired.begin(), repaired.end(), [&](const auto& r) {
+        return r.repair.worst_share <= cap;
+      }));
+  return order;
 }
 
 // Distinct directions a labeling uses.
@@ -219,6 +229,87 @@ std::vector<bool> blocked_parts(const AssemblyPlan& plan) {
   for (std::size_t k = plan.order.size() - plan.blocked; k < plan.order.size(); ++k)
     blocked[plan.order[k]] = true;
   return blocked;
+}
+
+// What the parts stage works from.
+struct PartsContext {
+  const TriMesh& solid;
+  const TetMesh& tets;
+  const std::vector<std::vector<Vec3>>& region_directions;
+  const AccessibilityField& access;
+  const DecomposeOptions& opts;
+  double tet_size;  // cube root of the mean tet volume
+};
+
+// A candidate made into parts, and the ways cleared on the way.
+struct AssembledParts {
+  PartsStage parts;
+  std::vector<WayClearing> clearings;
+};
+
+// Makes a candidate labeling into parts. When they have no assembly order, a blocked part takes
+// the tets of other parts in its way along +d or -d (clear_way()), the side with fewer blocked
+// stretches first, and the parts are made again; kept when fewer parts are left blocked, or the
+// same ones with fewer stretches of that way blocked.
+AssembledParts assemble_parts(const PartsContext& c, const RepairedCandidate& candidate) {
+  // Regions decomposed again keep no accessibility here: their tets may take any label of the
+  // region, and their parts keep their interfaces as they are.
+  const TetAllowsLabel label_allows = [&](std::int32_t t, std::int32_t r, std::int32_t l) {
+    return r != 0 || c.access.feasible.get(t, l);
+  };
+  const std::vector<Vec3> sphere = fibonacci_directions(kAssemblyDirections);
+  const std::vector<std::int32_t>& region = candidate.region;
+  AssembledParts out;
+  PartsStage& stage = out.parts;
+  stage = make_parts(c.solid, c.tets, candidate.label, region, c.region_directions, c.access,
+                     c.opts, sphere);
+  for (int round = 0; round < kMaxWayClearings && !stage.assembly.found; ++round) {
+    std::vector<Way> ways;
+    const std::vector<bool> blocked = blocked_parts(stage.assembly);
+    for (std::int32_t p = 0; p < static_cast<std::int32_t>(stage.parts.size()); ++p) {
+      if (!blocked[p] || stage.parts[p].region != 0) continue;
+      for (const Vec3& dir : {stage.parts[p].direction, Vec3(-stage.parts[p].direction)}) {
+        Way way = blocked_way(stage, p, dir, blocked, c.tet_size);
+        if (way.stretches > 0) ways.push_back(std::move(way));
+      }
+    }
+    std::stable_sort(ways.begin(), ways.end(),
+                     [](const Way& a, const Way& b) { return a.stretches < b.stretches; });
+    bool cleared = false;
+    for (const Way& way : ways) {
+      std::vector<std::int32_t> cleared_label = stage.label;
+      const std::vector<std::int32_t> moved =
+          clear_way(c.tets, cleared_label, region, c.region_directions, label_allows,
+                    stage.parts[way.part].tets.front(), way.dir, way.points);
+      if (moved.empty()) continue;
+      PartsStage tried = make_parts(c.solid, c.tets, cleared_label, region, c.region_directions,
+                                    c.access, c.opts, sphere);
+      if (tried.assembly.blocked > stage.assembly.blocked) continue;
+      if (tried.assembly.blocked == stage.assembly.blocked) {
+        const std::int32_t tet = stage.parts[way.part].tets.front();
+        const auto same = std::find_if(tried.parts.begin(), tried.parts.end(), [&](const Part& q) {
+          return std::binary_search(q.tets.begin(), q.tets.end(), tet);
+        });
+        if (same == tried.parts.end() ||
+            blocked_way(tried, same->id, way.dir, blocked_parts(tried.assembly), c.tet_size)
+                    .stretches >= way.stretches)
+          continue;
+      }
+      WayClearing w;
+      w.direction = way.dir;
+      w.direction_index = stage.parts[way.part].direction_index;
+      w.tets = static_cast<std::int32_t>(moved.size());
+      for (std::int32_t t : moved) w.volume_mm3 += tet_volume(c.tets, t);
+      w.blocked_before = stage.assembly.blocked;
+      w.blocked_after = tried.assembly.blocked;
+      out.clearings.push_back(w);
+      stage = std::move(tried);
+      cleared = true;
+      break;
+    }
+    if (!cleared) break;
+  }
+  return out;
 }
 
 }  // namespace
@@ -316,7 +407,7 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   // meets every line along its direction once (at the tets' resolution). Regions decomposed
   // again keep no accessibility of their own here, so their tets never change label. This
   // repair is run on every candidate labeling, and the one chosen is the one that comes out
-  // closest to double height fields (see pick_candidate()): fewer parts are worth little when
+  // closest to double height fields (see rank_candidates()): fewer parts are worth little when
   // one of them cannot be cast.
   const TetAllowsLabel region_allows = [&](std::int32_t t, std::int32_t r, std::int32_t l) {
     return r == 0 && d.access.feasible.get(t, l);
@@ -349,96 +440,48 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
     const std::lock_guard lock(progress_mutex);
     segmentation_progress(0.5 + 0.5 * double(++repairs_done) / double(distinct.size()));
   });
-  RepairedCandidate& chosen = pick_candidate(repaired, candidates);
-  std::vector<std::int32_t> label = std::move(chosen.label);
-  region = std::move(chosen.region);
-  d.sandwich = std::move(chosen.repair);
-  const LabelingCandidate& candidate = candidates[chosen.index];
+  report("segmentation", 1.0);
+  d.timings.segmentation = seconds_since(t0);
+
+  // --- 4. parts and assembly order ---
+  // The candidate ranked first is made into parts; when they have no assembly order even after
+  // their ways are cleared, the next competing candidates are tried in turn, and the first
+  // whose parts have one is kept (else the first).
+  t0 = Clock::now();
+  report("parts", 0.0);
+  std::size_t competing = 0;
+  const std::vector<std::size_t> ranked = rank_candidates(repaired, candidates, competing);
+  double tets_volume = 0.0;
+  for (std::size_t t = 0; t < num_tets; ++t)
+    tets_volume += tet_volume(d.tets, static_cast<std::int32_t>(t));
+  const PartsContext context{
+      solid,    d.tets, region_directions,
+      d.access, opts,   std::cbrt(tets_volume / std::max<double>(1.0, num_tets))};
+  std::size_t chosen = ranked.front();
+  AssembledParts stage = assemble_parts(context, repaired[chosen]);
+  for (std::size_t k = 1; k < competing && !stage.parts.assembly.found; ++k) {
+    AssembledParts tried = assemble_parts(context, repaired[ranked[k]]);
+    if (tried.parts.assembly.found) {
+      stage = std::move(tried);
+      chosen = ranked[k];
+    }
+  }
+  d.sandwich = std::move(repaired[chosen].repair);
+  const LabelingCandidate& candidate = candidates[repaired[chosen].index];
   d.labeling.best_restart = candidate.restart;
   d.labeling.energy = candidate.energy;
   d.labeling.num_components = candidate.parts;
   d.labeling.num_labels = count_labels(candidate.label);
   d.labeling.label = candidate.label;
-  report("segmentation", 1.0);
-  d.timings.segmentation = seconds_since(t0);
-
-  // --- 4. parts and assembly order ---
-  t0 = Clock::now();
-  report("parts", 0.0);
-  // Regions decomposed again keep no accessibility here: their tets may take any label of the
-  // region, and their parts keep their interfaces as they are.
-  const TetAllowsLabel label_allows = [&](std::int32_t t, std::int32_t r, std::int32_t l) {
-    return r != 0 || d.access.feasible.get(t, l);
-  };
-  std::vector<Vec3> removal_directions;
-  for (const Vec3& v : fibonacci_directions(kAssemblyDirections)) removal_directions.push_back(v);
-  PartsStage stage = make_parts(solid, d.tets, label, region, region_directions, d.access, opts,
-                                removal_directions);
-  // When no order exists, a blocked part takes the tets of other parts in its way along +d or -d
-  // (clear_way()), the side with fewer blocked stretches first, and the parts are made again;
-  // kept when fewer parts are left blocked, or the same ones with fewer stretches of that way
-  // blocked.
-  std::vector<WayClearing> clearings;
-  double tets_volume = 0.0;
-  for (std::size_t t = 0; t < num_tets; ++t)
-    tets_volume += tet_volume(d.tets, static_cast<std::int32_t>(t));
-  const double tet_size = std::cbrt(tets_volume / std::max<double>(1.0, num_tets));
-  for (int round = 0; round < kMaxWayClearings && !stage.assembly.found; ++round) {
-    std::vector<Way> ways;
-    const std::vector<bool> blocked = blocked_parts(stage.assembly);
-    for (std::int32_t p = 0; p < static_cast<std::int32_t>(stage.parts.size()); ++p) {
-      if (!blocked[p] || stage.parts[p].region != 0) continue;
-      for (const Vec3& dir : {stage.parts[p].direction, Vec3(-stage.parts[p].direction)}) {
-        Way way = blocked_way(stage, p, dir, blocked, tet_size);
-        if (way.stretches > 0) ways.push_back(std::move(way));
-      }
-    }
-    std::stable_sort(ways.begin(), ways.end(),
-                     [](const Way& a, const Way& b) { return a.stretches < b.stretches; });
-    bool cleared = false;
-    for (const Way& way : ways) {
-      std::vector<std::int32_t> cleared_label = stage.label;
-      const std::vector<std::int32_t> moved =
-          clear_way(d.tets, cleared_label, region, region_directions, label_allows,
-                    stage.parts[way.part].tets.front(), way.dir, way.points);
-      if (moved.empty()) continue;
-      PartsStage tried = make_parts(solid, d.tets, cleared_label, region, region_directions,
-                                    d.access, opts, removal_directions);
-      // Progress: fewer parts blocked, or the same ones with fewer stretches of this way blocked.
-      if (tried.assembly.blocked > stage.assembly.blocked) continue;
-      if (tried.assembly.blocked == stage.assembly.blocked) {
-        const std::int32_t tet = stage.parts[way.part].tets.front();
-        const auto same = std::find_if(tried.parts.begin(), tried.parts.end(), [&](const Part& q) {
-          return std::binary_search(q.tets.begin(), q.tets.end(), tet);
-        });
-        if (same == tried.parts.end() ||
-            blocked_way(tried, same->id, way.dir, blocked_parts(tried.assembly), tet_size)
-                    .stretches >= way.stretches)
-          continue;
-      }
-      WayClearing c;
-      c.direction = way.dir;
-      c.direction_index = stage.parts[way.part].direction_index;
-      c.tets = static_cast<std::int32_t>(moved.size());
-      for (std::int32_t t : moved) c.volume_mm3 += tet_volume(d.tets, t);
-      c.blocked_before = stage.assembly.blocked;
-      c.blocked_after = tried.assembly.blocked;
-      clearings.push_back(c);
-      stage = std::move(tried);
-      cleared = true;
-      break;
-    }
-    if (!cleared) break;
-  }
-  d.manifold = std::move(stage.manifold);
-  d.parts = std::move(stage.parts);
-  d.raw_smoothness = std::move(stage.raw_smoothness);
-  d.smoothness = std::move(stage.smoothness);
-  d.outer_smoothness = stage.outer_smoothness;
-  d.solid_cut = std::move(stage.solid_cut);
-  d.assembly = std::move(stage.assembly);
-  d.assembly_tolerance_mm = stage.assembly_tolerance_mm;
-  d.way_clearings = std::move(clearings);
+  d.manifold = std::move(stage.parts.manifold);
+  d.parts = std::move(stage.parts.parts);
+  d.raw_smoothness = std::move(stage.parts.raw_smoothness);
+  d.smoothness = std::move(stage.parts.smoothness);
+  d.outer_smoothness = stage.parts.outer_smoothness;
+  d.solid_cut = std::move(stage.parts.solid_cut);
+  d.assembly = std::move(stage.parts.assembly);
+  d.assembly_tolerance_mm = stage.parts.assembly_tolerance_mm;
+  d.way_clearings = std::move(stage.clearings);
   report("parts", 1.0);
   d.timings.parts = seconds_since(t0);
 
