@@ -537,7 +537,7 @@ class TetLocator {
       const Vec3& a = tets_.vertices[k[0]];
       Eigen::Matrix3d m;
       m << tets_.vertices[k[1]] - a, tets_.vertices[k[2]] - a, tets_.vertices[k[3]] - a;
-      const Vec3 w = m.fullPivLu().solve(p - a);
+      const Vec3 w = m.inverse() * (p - a);  // closed form for 3x3; tets are not flat
       constexpr double kSlack = 1e-9;
       if (w.minCoeff() >= -kSlack && w.sum() <= 1.0 + kSlack) return t;
     }
@@ -754,10 +754,13 @@ std::vector<std::int32_t> clear_way(const TetMesh& tets, std::vector<std::int32_
     moved_label[t] = s.label_of[s.owner[t]];
     if (moved_label[t] != label[t]) move.push_back(t);
   }
-  const Sandwiches before = count_sandwiched(s, label);
-  const Sandwiches after = count_sandwiched(s, moved_label);
-  if (after.parts > before.parts || after.worst_share > std::max(before.worst_share, kCleanShare))
-    return {};
+  // The share before is counted only when the one after exceeds kCleanShare: counting takes a
+  // walk per tet and direction used.
+  std::int32_t parts_after = 0;
+  detail::label_components(tets, moved_label, region, parts_after);
+  if (parts_after > num_parts) return {};
+  const double share_after = count_sandwiched(s, moved_label).worst_share;
+  if (share_after > kCleanShare && share_after > count_sandwiched(s, label).worst_share) return {};
   label = std::move(moved_label);
   return move;
 }
