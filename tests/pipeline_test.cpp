@@ -1,13 +1,16 @@
 // End-to-end properties of decompose() on real meshes.
+#include "dhfcast/pipeline.h"
+
 #include <gtest/gtest.h>
 #include <oneapi/tbb/global_control.h>
 
 #include <algorithm>
 #include <set>
+#include <string>
+#include <vector>
 
 #include "dhfcast/check.h"
 #include "dhfcast/mesh.h"
-#include "dhfcast/pipeline.h"
 #include "dhfcast/report.h"
 #include "support/test_support.h"
 
@@ -151,6 +154,17 @@ CheckReport check_written(const TriMesh& input, const DecomposeOptions& opts,
   return check_output(check);
 }
 
+// Expects each named check in the report, run and passed.
+void expect_checks_pass(const CheckReport& report, const std::vector<std::string>& names) {
+  for (const std::string& name : names) {
+    const auto item = std::find_if(report.items.begin(), report.items.end(),
+                                   [&](const CheckItem& i) { return i.name == name; });
+    ASSERT_NE(item, report.items.end()) << name;
+    EXPECT_FALSE(item->skipped) << name;
+    EXPECT_TRUE(item->passed) << name << ": " << item->summary;
+  }
+}
+
 // The checker's dhf figures: lines in all, violating lines, worst part's fraction, deepest gap.
 struct DhfFigures {
   double lines = 0, violating_lines = 0, max_violation_fraction = 0, max_depth_mm = 0;
@@ -273,12 +287,7 @@ TEST(Pipeline, SpoolPartsComeApartAlongEachOthersDirections) {
     sideways += std::abs(r.dot(p.direction)) < 1.0 - 1e-9;
   }
   EXPECT_GT(sideways, 0);
-  const CheckReport report = check_written(input, opts, d, "spool");
-  for (const CheckItem& item : report.items) {
-    if (item.name == "assembly") {
-      EXPECT_TRUE(item.passed) << item.summary;
-    }
-  }
+  expect_checks_pass(check_written(input, opts, d, "spool"), {"assembly"});
 }
 
 // Rockerarm at the default settings: its parts have an order (found with the planner's margin
@@ -292,11 +301,7 @@ TEST(Pipeline, RockerarmPartsAssembleAndCheckConfirms) {
   const Decomposition d = decompose(input, opts);
   EXPECT_TRUE(d.assembly.found) << d.assembly.message;
   EXPECT_LT(d.assembly_tolerance_mm, opts.access.epsilon_mm);
-  const CheckReport report = check_written(input, opts, d, "rockerarm");
-  for (const CheckItem& item : report.items)
-    if (item.name == "assembly") {
-      EXPECT_TRUE(item.passed) << item.summary;
-    }
+  expect_checks_pass(check_written(input, opts, d, "rockerarm"), {"assembly"});
 }
 
 // Fertility at the paper's tet count: its parts as first made lock together (a bump of one
@@ -317,11 +322,7 @@ TEST(Pipeline, FertilitysBlockedWayIsClearedAndCheckConfirmsTheOrder) {
     EXPECT_GT(c.volume_mm3, 0.0);
   }
   EXPECT_TRUE(d.assembly.found) << d.assembly.message;
-  const CheckReport report = check_written(input, opts, d, "fertility");
-  for (const CheckItem& item : report.items)
-    if (item.name == "assembly" || item.name == "dhf") {
-      EXPECT_TRUE(item.passed) << item.name << ": " << item.summary;
-    }
+  expect_checks_pass(check_written(input, opts, d, "fertility"), {"assembly", "dhf"});
 }
 
 // Doubletorus at the paper's tet count: the candidate ranked first makes two parts that lock
@@ -336,11 +337,7 @@ TEST(Pipeline, DoubletorusKeepsACandidateWhosePartsComeApart) {
   opts.make_molds = false;
   const Decomposition d = decompose(input, opts);
   EXPECT_TRUE(d.assembly.found) << d.assembly.message;
-  const CheckReport report = check_written(input, opts, d, "doubletorus");
-  for (const CheckItem& item : report.items)
-    if (item.name == "assembly" || item.name == "dhf") {
-      EXPECT_TRUE(item.passed) << item.name << ": " << item.summary;
-    }
+  expect_checks_pass(check_written(input, opts, d, "doubletorus"), {"assembly", "dhf"});
 }
 
 TEST(Pipeline, ConvexSolidIsOnePart) {
