@@ -118,8 +118,9 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
 // them, from obstructions()) and that `allows` P's label are seeds; their parts are blockers.
 // The blockers' tets in P's way are the seeds and those from which a line along -dir reaches P
 // through tets of their own part that P may take; every face-connected piece of them that holds
-// a seed goes to P, and so does every piece a blocker then falls into, other than its largest,
-// that P may take whole. The move is made when it leaves no more face-connected parts and no
+// a seed goes to P. Every piece a blocker then falls into, other than its largest, goes to P
+// when P may take it whole, else whole to a neighbouring part that allows it and gains no
+// sandwich, where there is one. The move is made when it leaves no more face-connected parts and no
 // part with a larger share of sandwiched volume than before (or than 1e-3). Returns the tets
 // moved, ascending; none when refused (label as it was).
 // Pre: as for absorb_sandwiched_tets().

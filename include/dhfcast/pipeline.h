@@ -50,7 +50,6 @@ struct InaccessibleRegion {
                                              // region's own surface; merged into a neighbour
 };
 
-// The result of decompose().
 // Tets given to a part blocked on its way out (clear_way()), when no assembly order existed.
 struct WayClearing {
   std::int32_t direction_index = 0;  // of the part whose way was cleared
@@ -60,6 +59,7 @@ struct WayClearing {
   std::int32_t blocked_before = 0, blocked_after = 0;  // parts left blocked
 };
 
+// The result of decompose().
 struct Decomposition {
   TetMesh tets;
   std::vector<Vec3> directions;

@@ -722,8 +722,9 @@ std::vector<std::int32_t> clear_way(const TetMesh& tets, std::vector<std::int32_
   }
   if (move.empty()) return {};
   for (std::int32_t t : move) s.owner[t] = p;
-  // Pieces the blockers fall into, other than the largest of each, go to p too when it may take
-  // them all: slivers left between the tets moved and the surface.
+  // Pieces the blockers fall into, other than the largest of each, go to p when it may take
+  // them all (slivers left between the tets moved and the surface), else to a neighbour that
+  // can (give_away()).
   std::vector<std::int32_t> moved_label = label;
   for (std::int32_t t : move) moved_label[t] = s.label_of[p];
   std::int32_t num_pieces = 0;

@@ -162,15 +162,11 @@ struct PartsStage {
 PartsStage make_parts(const TriMesh& solid, const TetMesh& tets, std::vector<std::int32_t> label,
                       const std::vector<std::int32_t>& region,
                       const std::vector<std::vector<Vec3>>& region_directions,
-                      const AccessibilityField& access, const DecomposeOptions& opts,
-                      const std::vector<Vec3>& sphere_directions) {
+                      const AccessibilityField& access, const TetAllowsLabel& label_allows,
+                      const DecomposeOptions& opts, const std::vector<Vec3>& sphere_directions) {
   PartsStage out;
-  // A part whose tets meet only along an edge or at a vertex would touch itself there. Regions
-  // decomposed again keep no accessibility here: their tets may take any label of the region.
-  out.manifold =
-      make_parts_manifold(tets, label, region, [&](std::int32_t t, std::int32_t r, std::int32_t l) {
-        return r != 0 || access.feasible.get(t, l);
-      });
+  // A part whose tets meet only along an edge or at a vertex would touch itself there.
+  out.manifold = make_parts_manifold(tets, label, region, label_allows);
   out.label = std::move(label);
   out.parts = extract_parts(tets, out.label, region, region_directions);
   // Parts of a region decomposed again carry that region's own accessibility, which is not kept:
@@ -262,7 +258,7 @@ AssembledParts assemble_parts(const PartsContext& c, const RepairedCandidate& ca
   AssembledParts out;
   PartsStage& stage = out.parts;
   stage = make_parts(c.solid, c.tets, candidate.label, region, c.region_directions, c.access,
-                     c.opts, sphere);
+                     label_allows, c.opts, sphere);
   for (int round = 0; round < kMaxWayClearings && !stage.assembly.found; ++round) {
     std::vector<Way> ways;
     const std::vector<bool> blocked = blocked_parts(stage.assembly);
@@ -283,7 +279,7 @@ AssembledParts assemble_parts(const PartsContext& c, const RepairedCandidate& ca
                     stage.parts[way.part].tets.front(), way.dir, way.points);
       if (moved.empty()) continue;
       PartsStage tried = make_parts(c.solid, c.tets, cleared_label, region, c.region_directions,
-                                    c.access, c.opts, sphere);
+                                    c.access, label_allows, c.opts, sphere);
       if (tried.assembly.blocked > stage.assembly.blocked) continue;
       if (tried.assembly.blocked == stage.assembly.blocked) {
         const std::int32_t tet = stage.parts[way.part].tets.front();
