@@ -250,6 +250,30 @@ TEST(Molds, ToleratedSlitUnderALipIsLeftToTheCast) {
   EXPECT_TRUE(item.passed) << item.summary;
 }
 
+// The same slab with a 2 mm slit, far beyond epsilon: the part is not a double height field
+// there. The halves still release (neither holds the slit, which the cast fills), and the
+// check finds the slit's faces covered by no half.
+TEST(Molds, DeepSlitUnderALipIsLeftToTheCastAndTheHalvesRelease) {
+  const std::vector<double> xs = {0, 28, 32, 60}, ys = {-2, 0, 3, 60}, zs = {0, 10, 12, 14};
+  const TriMesh slab = test::grid_surface(xs, ys, zs, [](int i, int j, int k) {
+    return k == 0 || (i == 1 && j == 0) || (i == 1 && j == 1 && k == 2);
+  });
+  const Part part = part_of(slab, Vec3::UnitZ());
+  const Mold mold = build_mold(part, {});
+  expect_valid_mold(mold, part.direction);
+  const CheckItem item = checked_molds(part, mold);
+  const auto figure = [&](const std::string& name) {
+    for (const auto& [key, value] : item.figures)
+      if (key == name) return value;
+    ADD_FAILURE() << "no figure " << name;
+    return -1.0;
+  };
+  EXPECT_EQ(figure("blocked_samples"), 0.0) << item.summary;
+  // The slit's floor and ceiling (4 x 3 mm each) of the part's surface (about 8000 mm2).
+  EXPECT_LT(figure("min_surface_coverage"), 0.999) << item.summary;
+  EXPECT_GT(figure("min_surface_coverage"), 0.99) << item.summary;
+}
+
 TEST(Molds, SameMoldOnAnyThreadCount) {
   const std::vector<Part> parts = {
       part_of(make_sphere(Vec3(0, 0, 0), 12, 12, 24), Vec3(0.3, 0.4, 1.0)),

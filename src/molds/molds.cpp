@@ -311,16 +311,16 @@ bool deeper_than(const LineIndex& index, const Vec3& origin, const Vec3& d, doub
 // What release asks of the two surfaces on a line meeting the part in `in` (parameters =
 // heights along d), where the parting surface is at `parting`: the up half is pulled along +d
 // past everything above it, so its surface must be at least the bottom of the topmost
-// stretch; the down half's at most the top of the lowest. Gaps between stretches that the
-// undercut tolerance accepts (none deeper than epsilon: the dhf check's rule) are then left to
-// neither half: the cast fills them, within epsilon of the part, where a half holding one could
-// not leave. A stretch no deeper than epsilon / 2 from the part's surface (a line along a wall)
-// asks nothing: a sweep across it does not go deeper than epsilon, the molds check's rule, with
-// a margin for lines beside this one. A quarter of epsilon inside the stretch, so that float
-// rounding does not move a half's face onto the part's. {up_min, down_max}; nullopt when the
-// parting surface already meets both (the fit only raises the up surface and lowers the down
-// one), or the line is not a double height field up to the tolerance and no half releases
-// there whatever the surfaces do. The depth tests run only where a bound would bind.
+// stretch; the down half's at most the top of the lowest. Gaps between stretches are then left
+// to neither half: the cast fills them, where a half holding one could not leave. Within the
+// undercut tolerance (no gap deeper than epsilon: the dhf check's rule) that is within epsilon
+// of the part; where the part is not a double height field (which the dhf check reports) the
+// cast gets a fin there, but the halves still release. A stretch no deeper than epsilon / 2 from
+// the part's surface (a line along a wall) asks nothing: a sweep across it does not go deeper than
+// epsilon, the molds check's rule, with a margin for lines beside this one. A quarter of epsilon
+// inside the stretch, so that float rounding does not move a half's face onto the part's. {up_min,
+// down_max}; nullopt when the parting surface already meets both (the fit only raises the up
+// surface and lowers the down one). The depth tests run only where a bound would bind.
 std::optional<std::pair<double, double>> release_bounds(const std::vector<LineInterval>& in,
                                                         double parting, const LineIndex& index,
                                                         const Vec3& origin, const Vec3& d,
@@ -331,8 +331,6 @@ std::optional<std::pair<double, double>> release_bounds(const std::vector<LineIn
   if (parting >= up_min) up_min = -INFINITY;
   if (parting <= down_max) down_max = INFINITY;
   if (up_min == -INFINITY && down_max == INFINITY) return std::nullopt;
-  for (std::size_t k = 0; k + 1 < in.size(); ++k)
-    if (deeper_than(index, origin, d, in[k].end, in[k + 1].begin, epsilon_mm)) return std::nullopt;
   auto holds = [&](const LineInterval& iv) {
     return deeper_than(index, origin, d, iv.begin, iv.end, 0.5 * epsilon_mm);
   };
