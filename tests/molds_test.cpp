@@ -234,16 +234,22 @@ TEST(Molds, EveryAirTrapGetsAVent) {
   EXPECT_TRUE(automatic.vents.empty());
 }
 
+// A 60 x 62 x 10 mm slab with a 2 mm lip, 4 x 3 mm across, over a slit `slit_mm` high; a wall
+// at the slit's end holds the lip up.
+TriMesh slab_with_slit(double slit_mm) {
+  const std::vector<double> xs = {0, 28, 32, 60}, ys = {-2, 0, 3, 60},
+                            zs = {0, 10, 10 + slit_mm, 12 + slit_mm};
+  return test::grid_surface(xs, ys, zs, [](int i, int j, int k) {
+    return k == 0 || (i == 1 && j == 0) || (i == 1 && j == 1 && k == 2);
+  });
+}
+
 // A slab with a lip over a 0.3 mm slit: lines through the slit meet the part twice, a double
 // height field only up to epsilon. A half holding the slit could not be pulled past the lip
 // (the parting surface used to cut a tongue into it); the slit is left to the cast instead.
 // The lip also ends between the parting surface's nodes.
 TEST(Molds, ToleratedSlitUnderALipIsLeftToTheCast) {
-  const std::vector<double> xs = {0, 28, 32, 60}, ys = {-2, 0, 3, 60}, zs = {0, 10, 10.3, 12};
-  const TriMesh slab = test::grid_surface(xs, ys, zs, [](int i, int j, int k) {
-    return k == 0 || (i == 1 && j == 0) || (i == 1 && j == 1 && k == 2);
-  });
-  const Part part = part_of(slab, Vec3::UnitZ());
+  const Part part = part_of(slab_with_slit(0.3), Vec3::UnitZ());
   const Mold mold = build_mold(part, {});
   expect_valid_mold(mold, part.direction);
   const CheckItem item = checked_molds(part, mold);
@@ -254,11 +260,7 @@ TEST(Molds, ToleratedSlitUnderALipIsLeftToTheCast) {
 // there. The halves still release (neither holds the slit, which the cast fills), and the
 // check finds the slit's faces covered by no half.
 TEST(Molds, DeepSlitUnderALipIsLeftToTheCastAndTheHalvesRelease) {
-  const std::vector<double> xs = {0, 28, 32, 60}, ys = {-2, 0, 3, 60}, zs = {0, 10, 12, 14};
-  const TriMesh slab = test::grid_surface(xs, ys, zs, [](int i, int j, int k) {
-    return k == 0 || (i == 1 && j == 0) || (i == 1 && j == 1 && k == 2);
-  });
-  const Part part = part_of(slab, Vec3::UnitZ());
+  const Part part = part_of(slab_with_slit(2.0), Vec3::UnitZ());
   const Mold mold = build_mold(part, {});
   expect_valid_mold(mold, part.direction);
   const CheckItem item = checked_molds(part, mold);
