@@ -290,15 +290,28 @@ TEST(Pipeline, SpoolPartsComeApartAlongEachOthersDirections) {
   expect_checks_pass(check_written(input, opts, d, "spool"), {"assembly"});
 }
 
+// A shared model's input, the options it is decomposed with (the defaults, without molds, and
+// `tets` tets when > 0) and its decomposition.
+struct ModelRun {
+  TriMesh input;
+  DecomposeOptions opts;
+  Decomposition d;
+};
+ModelRun decompose_model(const std::string& path, std::int32_t tets = 0) {
+  ModelRun run;
+  run.input = test::load_scaled(path, 0.0);
+  if (tets > 0) run.opts.tets.target_tets = tets;
+  run.opts.make_molds = false;
+  run.d = decompose(run.input, run.opts);
+  return run;
+}
+
 // Rockerarm at the default settings: its parts have an order (found with the planner's margin
 // below check's own limit, shrunk if need be), and check confirms it.
 TEST(Pipeline, RockerarmPartsAssembleAndCheckConfirms) {
   const std::string path = test::extra_model("rockerarm.stl");
   if (path.empty()) GTEST_SKIP() << "extended models absent (set DHFCAST_MODELS_DIR)";
-  const TriMesh input = test::load_scaled(path, 0.0);
-  DecomposeOptions opts;
-  opts.make_molds = false;
-  const Decomposition d = decompose(input, opts);
+  const auto [input, opts, d] = decompose_model(path);
   EXPECT_TRUE(d.assembly.found) << d.assembly.message;
   EXPECT_LT(d.assembly_tolerance_mm, opts.access.epsilon_mm);
   expect_checks_pass(check_written(input, opts, d, "rockerarm"), {"assembly"});
@@ -309,11 +322,7 @@ TEST(Pipeline, RockerarmPartsAssembleAndCheckConfirms) {
 TEST(Pipeline, FertilitysBlockedWayIsClearedAndCheckConfirmsTheOrder) {
   const std::string path = test::extra_model("fertility.stl");
   if (path.empty()) GTEST_SKIP() << "extended models absent (set DHFCAST_MODELS_DIR)";
-  const TriMesh input = test::load_scaled(path, 0.0);
-  DecomposeOptions opts;
-  opts.tets.target_tets = 24215;
-  opts.make_molds = false;
-  const Decomposition d = decompose(input, opts);
+  const auto [input, opts, d] = decompose_model(path, 24215);
   ASSERT_FALSE(d.way_clearings.empty());
   EXPECT_GT(d.way_clearings.front().blocked_before, 0);
   EXPECT_EQ(d.way_clearings.back().blocked_after, 0);
@@ -331,11 +340,7 @@ TEST(Pipeline, FertilitysBlockedWayIsClearedAndCheckConfirmsTheOrder) {
 TEST(Pipeline, DoubletorusKeepsACandidateWhosePartsComeApart) {
   const std::string path = test::extra_model("doubletorus.stl");
   if (path.empty()) GTEST_SKIP() << "extended models absent (set DHFCAST_MODELS_DIR)";
-  const TriMesh input = test::load_scaled(path, 0.0);
-  DecomposeOptions opts;
-  opts.tets.target_tets = 19527;
-  opts.make_molds = false;
-  const Decomposition d = decompose(input, opts);
+  const auto [input, opts, d] = decompose_model(path, 19527);
   EXPECT_TRUE(d.assembly.found) << d.assembly.message;
   expect_checks_pass(check_written(input, opts, d, "doubletorus"), {"assembly", "dhf"});
 }
