@@ -72,6 +72,11 @@ struct SandwichRepair {
   std::vector<SandwichMove> moves;  // summed by (region, from_label, to_label), in that order
 };
 
+// Below this share of sandwiched volume in its worst part (SandwichRepair::worst_share), a
+// labeling counts as a set of double height fields: smoothing the interfaces and cutting the
+// parts from the solid then leave about no line that meets a part twice.
+constexpr double kCleanSandwichShare = 1e-3;
+
 // Whether tet `tet` may take label `label` of region `region` (its direction is DHF-accessible
 // there).
 using TetAllowsLabel =

@@ -22,10 +22,6 @@ namespace {
 // neighbour its DHF property, or makes it touch itself.
 constexpr double kFragmentShare = 1e-4;
 
-// A part with less than this share of its volume sandwiched counts as a DHF at the tet level
-// (smoothing and the exact cut leave about no line that meets it twice).
-constexpr double kCleanShare = 1e-3;
-
 // Per tet, tet_face_normal() of each face: computed once, as every line walk needs them at
 // every step.
 using FaceNormals = std::vector<std::array<Vec3, 4>>;
@@ -87,6 +83,19 @@ struct Parts {
   std::vector<char> frozen;  // settled parts: their tets never move again
 
   std::int32_t size() const { return static_cast<std::int32_t>(label_of.size()); }
+
+  // Makes the parts the face-connected components of `label` (all settled or none); returns
+  // how many.
+  std::int32_t take_parts(const std::vector<std::int32_t>& label, bool settled) {
+    std::int32_t count = 0;
+    owner = detail::label_components(tets, label, region, count);
+    label_of.assign(count, -1);
+    region_of.assign(count, -1);
+    frozen.assign(count, settled ? 1 : 0);
+    for (std::size_t t = 0; t < owner.size(); ++t)
+      if (label_of[owner[t]] < 0) label_of[owner[t]] = label[t], region_of[owner[t]] = region[t];
+    return count;
+  }
   const Vec3& direction(std::int32_t p) const { return directions[region_of[p]][label_of[p]]; }
   bool may_join(std::int32_t t, std::int32_t p) const {
     return region[t] == region_of[p] && allows(t, region_of[p], label_of[p]);
@@ -381,16 +390,11 @@ std::vector<std::int32_t> settle_all(Parts s, const std::vector<std::int32_t>& o
   std::vector<std::int32_t> label(n);
   for (;;) {
     for (std::int32_t t = 0; t < n; ++t) label[t] = s.label_of[s.owner[t]];
-    std::int32_t now_parts = 0;
-    s.owner = detail::label_components(s.tets, label, s.region, now_parts);
-    s.label_of.assign(now_parts, -1);
-    s.region_of.assign(now_parts, -1);
-    s.frozen.assign(now_parts, 1);
+    const std::int32_t now_parts = s.take_parts(label, true);
     std::vector<double> piece_volume(now_parts, 0.0);
     std::vector<std::vector<std::int32_t>> members(now_parts);
     for (std::int32_t t = 0; t < n; ++t) {
       const std::int32_t c = s.owner[t];
-      if (s.label_of[c] < 0) s.label_of[c] = label[t], s.region_of[c] = s.region[t];
       piece_volume[c] += s.volume[t];
       members[c].push_back(t);
     }
@@ -450,14 +454,7 @@ void polish(Parts& s, std::vector<std::int32_t>& label, std::int32_t max_rounds)
   for (std::int32_t round = 0; round < max_rounds; ++round) {
     std::vector<std::int32_t> within;
     count_sandwiched(s, label, &within);
-    std::int32_t num_parts = 0;
-    s.owner = detail::label_components(s.tets, label, s.region, num_parts);
-    s.label_of.assign(num_parts, -1);
-    s.region_of.assign(num_parts, -1);
-    s.frozen.assign(num_parts, 1);
-    for (std::int32_t t = 0; t < n; ++t)
-      if (s.label_of[s.owner[t]] < 0)
-        s.label_of[s.owner[t]] = label[t], s.region_of[s.owner[t]] = s.region[t];
+    s.take_parts(label, true);
     // Groups: face-connected tets of one part sandwiched in the same part P that allows them.
     std::vector<std::int32_t> owner(n, -1), in_part(n, -1);
     for (std::int32_t t = 0; t < n; ++t)
@@ -609,15 +606,10 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
   SandwichRepair repair;
   Sandwiches best = count_sandwiched(s, label);
   if (opts.max_rounds > 0) {
-    std::int32_t num_parts = 0;
-    s.owner = detail::label_components(tets, label, region, num_parts);
-    s.label_of.assign(num_parts, -1);
-    s.region_of.assign(num_parts, -1);
-    s.frozen.assign(num_parts, 0);
+    const std::int32_t num_parts = s.take_parts(label, false);
     std::vector<double> part_volume(num_parts, 0.0);
     for (std::int32_t t = 0; t < n; ++t) {
       const std::int32_t p = s.owner[t];
-      if (s.label_of[p] < 0) s.label_of[p] = label[t], s.region_of[p] = region[t];
       part_volume[p] += s.volume[t];
     }
     // The parts that settle first keep their shape and later ones give way, so which order
@@ -687,14 +679,7 @@ std::vector<std::int32_t> clear_way(const TetMesh& tets, std::vector<std::int32_
   if (part_tet < 0 || part_tet >= n) throw Error(ErrorCode::Internal, "clear_way: no such tet");
   const FaceNormals normals = face_normals(tets);
   Parts s = make_state(tets, normals, region, directions, allows);
-  std::int32_t num_parts = 0;
-  s.owner = detail::label_components(tets, label, region, num_parts);
-  s.label_of.assign(num_parts, -1);
-  s.region_of.assign(num_parts, -1);
-  s.frozen.assign(num_parts, 1);
-  for (std::int32_t t = 0; t < n; ++t)
-    if (s.label_of[s.owner[t]] < 0)
-      s.label_of[s.owner[t]] = label[t], s.region_of[s.owner[t]] = region[t];
+  const std::int32_t num_parts = s.take_parts(label, true);
   const std::int32_t p = s.owner[part_tet];
 
   std::vector<char> seed(n, 0), blocker(num_parts, 0);
@@ -755,13 +740,14 @@ std::vector<std::int32_t> clear_way(const TetMesh& tets, std::vector<std::int32_
     moved_label[t] = s.label_of[s.owner[t]];
     if (moved_label[t] != label[t]) move.push_back(t);
   }
-  // The share before is counted only when the one after exceeds kCleanShare: counting takes a
-  // walk per tet and direction used.
+  // The share before is counted only when the one after exceeds kCleanSandwichShare: counting takes
+  // a walk per tet and direction used.
   std::int32_t parts_after = 0;
   detail::label_components(tets, moved_label, region, parts_after);
   if (parts_after > num_parts) return {};
   const double share_after = count_sandwiched(s, moved_label).worst_share;
-  if (share_after > kCleanShare && share_after > count_sandwiched(s, label).worst_share) return {};
+  if (share_after > kCleanSandwichShare && share_after > count_sandwiched(s, label).worst_share)
+    return {};
   label = std::move(moved_label);
   return move;
 }

@@ -104,22 +104,17 @@ struct RepairedCandidate {
   SandwichRepair repair;
 };
 
-// Below this share of sandwiched volume in its worst part, a labeling counts as a set of double
-// height fields: smoothing the interfaces and cutting the parts from the solid then leave about
-// no line that meets a part twice.
-constexpr double kCleanShare = 1e-3;
-
 // The candidates in the order they are kept: those whose worst part has at most twice the
-// smallest share of sandwiched volume found (or kCleanShare, if larger) compete, and come first;
-// among them the fewest parts first, then the smaller share, then the segmentation's own order
-// (smaller variance of part volumes, then lower energy, then index). Returns indices into
+// smallest share of sandwiched volume found (or kCleanSandwichShare, if larger) compete, and come
+// first; among them the fewest parts first, then the smaller share, then the segmentation's own
+// order (smaller variance of part volumes, then lower energy, then index). Returns indices into
 // `repaired` and, in `competing`, how many compete.
 std::vector<std::size_t> rank_candidates(const std::vector<RepairedCandidate>& repaired,
                                          const std::vector<LabelingCandidate>& candidates,
                                          std::size_t& competing) {
   double least = INFINITY;
   for (const RepairedCandidate& r : repaired) least = std::min(least, r.repair.worst_share);
-  const double cap = std::max(kCleanShare, 2 * least);
+  const double cap = std::max(kCleanSandwichShare, 2 * least);
   const auto key = [&](std::size_t i) {
     const RepairedCandidate& r = repaired[i];
     const LabelingCandidate& c = candidates[r.index];
