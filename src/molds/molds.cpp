@@ -592,10 +592,12 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
   // down half's lowered where release needs it on the line through a grid node or a point of
   // the part's faces (the part bends and ends between nodes), so they part across the gaps the
   // tolerance accepts ---
-  // Points of the part's faces, half a cell apart across d (a hair inside each face, so that
-  // their lines do not run along the walls its edges may top); a face smaller than that gives
-  // its centroid. Walls (faces along d) are left out: lines along them bind nothing, and the
-  // faces above and below them give the lines beside them.
+  // Points of the part's faces, half a cell apart across d, and where the faces' edges cross the
+  // grid's lines and cells' diagonals: between those crossings both the part's face and the
+  // surface's triangle are planar, so the gap between them is least at one of them. A hair
+  // inside each face, so that their lines do not run along the walls its edges may top; a face
+  // smaller than half a cell gives its centroid. Walls (faces along d) are left out: lines along
+  // them bind nothing, and the faces above and below them give the lines beside them.
   std::vector<Vec3> on_part;
   for (const Tri& t : cavity.triangles) {
     const Vec3 &a = cavity.vertices[t[0]], &b = cavity.vertices[t[1]], &c = cavity.vertices[t[2]];
@@ -611,6 +613,18 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
         const Vec3 p = (i * a + j * b + (n - i - j) * c) / double(n);
         on_part.push_back(centroid + 0.98 * (p - centroid));
       }
+    for (const auto& [p, q] : {std::pair{&a, &b}, {&b, &c}, {&c, &a}}) {
+      const Vec3 lp = frame.local(*p), lq = frame.local(*q);
+      const double u0 = (lp.x() - g.x0) / g.s, v0 = (lp.y() - g.y0) / g.s;
+      const double u1 = (lq.x() - g.x0) / g.s, v1 = (lq.y() - g.y0) / g.s;
+      for (const auto& [f0, f1] : {std::pair{u0, u1}, {v0, v1}, {u0 - v0, u1 - v1}}) {
+        const double k_lo = std::floor(std::min(f0, f1)) + 1, k_hi = std::max(f0, f1);
+        for (double k = k_lo; k < k_hi && k < k_lo + 64; ++k) {
+          const Vec3 crossing = *p + (k - f0) / (f1 - f0) * (*q - *p);
+          on_part.push_back(centroid + 0.98 * (crossing - centroid));
+        }
+      }
+    }
   }
   const std::size_t num_on_part = on_part.size();
   std::vector<std::optional<FitPoint>> candidates(num_on_part + nodes);
