@@ -1462,5 +1462,67 @@ TEST(ClearWay, MovesThatWouldSplitAPartOrThatItsDirectionForbidsAreRefused) {
   EXPECT_EQ(label, start);
 }
 
+// --- filling a part's gaps along its direction ---
+
+// A 4x3x3 box: part P (label 0, along z) is a C over the first three columns of cells (bottom
+// and top layers, and the x = 0 wall); part Q (label 1, along x) is the middle layer inside the
+// C and the whole last column. Lines along z through the C's mouth meet P, Q, P.
+int c_around_a_tongue(const Cell& c) { return c[0] <= 2 && (c[2] != 1 || c[0] == 0) ? 0 : 1; }
+
+TEST(DhfGaps, LinesThroughAPartsMouthCrossTheNeighbourBetweenItsJaws) {
+  const Grid g = make_grid(4, 3, 3, 10.0);
+  const std::vector<std::vector<Vec3>> dirs{{kZ, kX}};
+  const auto parts = extract_parts(g.mesh, per_cell(g, c_around_a_tongue), zeros(g), dirs);
+  ASSERT_EQ(parts.size(), 2u);
+  const std::int32_t p = parts[0].direction_index == 0 ? 0 : 1, q = 1 - p;
+  constexpr std::int64_t kLines = 900;  // over P's 30 x 30 mm footprint
+  const std::vector<Obstruction> gaps = dhf_gaps(parts, p, kLines, kTolerance_mm);
+  // The mouth is two thirds of the footprint.
+  EXPECT_GT(gaps.size(), 0.6 * kLines);
+  EXPECT_LT(gaps.size(), 0.72 * kLines);
+  for (const Obstruction& o : gaps) {
+    EXPECT_EQ(o.part, q);
+    EXPECT_NEAR(o.from.z(), 10.0, 1e-6);
+    EXPECT_NEAR(o.to.z(), 20.0, 1e-6);
+    EXPECT_GT(o.from.x(), 10.0);
+    EXPECT_LT(o.from.x(), 30.0);
+  }
+  // Along x, Q is one interval on every line; a gap no deeper than epsilon is none.
+  EXPECT_TRUE(dhf_gaps(parts, q, kLines, kTolerance_mm).empty());
+  EXPECT_TRUE(dhf_gaps(parts, p, kLines, 5.0).empty());
+}
+
+TEST(FillGaps, TheTongueBetweenThePartsJawsJoinsIt) {
+  const Grid g = make_grid(4, 3, 3, 10.0);
+  const std::vector<std::vector<Vec3>> dirs{{kZ, kX}};
+  auto label = per_cell(g, c_around_a_tongue);
+  const auto parts = extract_parts(g.mesh, label, zeros(g), dirs);
+  const std::int32_t p = parts[0].direction_index == 0 ? 0 : 1;
+  std::vector<Vec3> points;  // along each gap, 1 mm apart, as the pipeline seeds them
+  for (const Obstruction& o : dhf_gaps(parts, p, 100, kTolerance_mm))
+    for (int i = 0; i <= 10; ++i) points.push_back(o.from + 0.1 * i * (o.to - o.from));
+  const std::vector<std::int32_t> moved =
+      fill_gaps(g.mesh, label, zeros(g), dirs, kAllowAll, parts[p].tets.front(), points);
+  std::vector<std::int32_t> expected;
+  for (std::int32_t t = 0; t < static_cast<std::int32_t>(label.size()); ++t) {
+    const Cell& c = g.cell_of_tet[t];
+    EXPECT_EQ(label[t], c[0] <= 2 ? 0 : 1) << "tet " << t;
+    if (c[0] >= 1 && c[0] <= 2 && c[2] == 1) expected.push_back(t);
+  }
+  EXPECT_EQ(moved, expected);
+  const auto filled = extract_parts(g.mesh, label, zeros(g), dirs);
+  ASSERT_EQ(filled.size(), 2u);
+  for (std::int32_t k = 0; k < 2; ++k) EXPECT_TRUE(dhf_gaps(filled, k, 900, kTolerance_mm).empty());
+  // A part that may not take the tongue keeps its gap.
+  auto kept = per_cell(g, c_around_a_tongue);
+  const TetAllowsLabel tongue_forbidden = [&](std::int32_t t, std::int32_t, std::int32_t l) {
+    return l != 0 || g.cell_of_tet[t][2] != 1;
+  };
+  EXPECT_TRUE(
+      fill_gaps(g.mesh, kept, zeros(g), dirs, tongue_forbidden, parts[p].tets.front(), points)
+          .empty());
+  EXPECT_EQ(kept, per_cell(g, c_around_a_tongue));
+}
+
 }  // namespace
 }  // namespace dhfcast

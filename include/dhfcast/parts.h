@@ -135,6 +135,21 @@ std::vector<std::int32_t> clear_way(const TetMesh& tets, std::vector<std::int32_
                                     const TetAllowsLabel& allows, std::int32_t part_tet,
                                     const Vec3& dir, const std::vector<Vec3>& obstacle_points);
 
+// Fills the gaps of a part along its direction at the label level, where dhf_gaps() found its
+// lines leaving it and entering it again deeper than the undercut tolerance through other parts.
+// Tets of other parts that contain one of `gap_points` (points of those stretches) and that
+// `allows` P's label are seeds; each face-connected piece of them goes to P on its own, grown by
+// at most two rings of its part's tets that P may take when it does not touch P (the smoothed
+// interfaces are off the tets), and kept when its part does not fall apart. Unlike clear_way(),
+// no sandwich share is compared: the caller judges the parts made from the result. Returns the
+// tets moved, ascending; none when no piece was kept (label as it was).
+// Pre: as for absorb_sandwiched_tets().
+std::vector<std::int32_t> fill_gaps(const TetMesh& tets, std::vector<std::int32_t>& label,
+                                    const std::vector<std::int32_t>& region,
+                                    const std::vector<std::vector<Vec3>>& directions,
+                                    const TetAllowsLabel& allows, std::int32_t part_tet,
+                                    const std::vector<Vec3>& gap_points);
+
 // What make_parts_manifold() did.
 struct ManifoldRepair {
   std::int32_t rounds = 0;      // passes over the vertices that needed a fix
@@ -295,5 +310,13 @@ struct Obstruction {
 // samples, rays and tolerance): every such stretch of every sample's way, in the samples' order.
 std::vector<Obstruction> obstructions(const std::vector<Part>& parts, std::int32_t p,
                                       const Vec3& dir, double tolerance_mm);
+
+// Where part p is not a double height field along its direction: on about `lines` lines along d,
+// a square grid over its footprint's bounding rectangle, every stretch between two of its intervals
+// whose deepest point is farther than epsilon_mm from its boundary (`dhfcast check`'s rule), bottom
+// to top. Obstruction::part is the first other part the stretch enters, -1 when none (the gap is
+// outside the solid). Deterministic.
+std::vector<Obstruction> dhf_gaps(const std::vector<Part>& parts, std::int32_t p,
+                                  std::int64_t lines, double epsilon_mm);
 
 }  // namespace dhfcast

@@ -59,6 +59,15 @@ struct WayClearing {
   std::int32_t blocked_before = 0, blocked_after = 0;  // parts left blocked
 };
 
+// One round of tets given to parts in their gaps along d (fill_gaps()), where the finished parts
+// were not double height fields.
+struct GapFilling {
+  std::int32_t tets = 0;
+  double volume_mm3 = 0.0;
+  // Lines a tet apart over the parts' footprints that cross a gap deeper than epsilon.
+  std::int32_t gap_lines_before = 0, gap_lines_after = 0;
+};
+
 // The result of decompose().
 struct Decomposition {
   TetMesh tets;
@@ -78,6 +87,7 @@ struct Decomposition {
   InterfaceSmoothness outer_smoothness;
   AssemblyPlan assembly;
   std::vector<WayClearing> way_clearings;  // in the order they were made
+  std::vector<GapFilling> gap_fillings;    // likewise, after the ways were cleared
   std::vector<Mold> molds;  // one per part, in part order; empty when !make_molds
   double assembly_tolerance_mm = 0.0;  // depth into a part below which a move does not block
   StageTimes timings;

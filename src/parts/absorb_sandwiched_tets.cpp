@@ -669,14 +669,19 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
   return repair;
 }
 
-std::vector<std::int32_t> clear_way(const TetMesh& tets, std::vector<std::int32_t>& label,
+namespace {
+
+// clear_way() and fill_gaps(): the tets of other parts at `points` that part p may take, and with
+// `ahead`, those of their parts in p's way along *ahead.
+std::vector<std::int32_t> take_over(const TetMesh& tets, std::vector<std::int32_t>& label,
                                     const std::vector<std::int32_t>& region,
                                     const std::vector<std::vector<Vec3>>& directions,
                                     const TetAllowsLabel& allows, std::int32_t part_tet,
-                                    const Vec3& dir, const std::vector<Vec3>& obstacle_points) {
+                                    const Vec3* ahead_dir, const std::vector<Vec3>& points,
+                                    bool keep_sandwich_share) {
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
   check_labeling(tets, label, region, directions);
-  if (part_tet < 0 || part_tet >= n) throw Error(ErrorCode::Internal, "clear_way: no such tet");
+  if (part_tet < 0 || part_tet >= n) throw Error(ErrorCode::Internal, "take_over: no such tet");
   const FaceNormals normals = face_normals(tets);
   Parts s = make_state(tets, normals, region, directions, allows);
   const std::int32_t num_parts = s.take_parts(label, true);
@@ -684,7 +689,7 @@ std::vector<std::int32_t> clear_way(const TetMesh& tets, std::vector<std::int32_
 
   std::vector<char> seed(n, 0), blocker(num_parts, 0);
   const TetLocator locator(tets);
-  for (const Vec3& x : obstacle_points) {
+  for (const Vec3& x : points) {
     const std::int32_t t = locator.locate(x);
     if (t >= 0 && s.owner[t] != p && s.may_join(t, p)) seed[t] = 1, blocker[s.owner[t]] = 1;
   }
@@ -694,62 +699,124 @@ std::vector<std::int32_t> clear_way(const TetMesh& tets, std::vector<std::int32_
   tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
     const std::int32_t q = s.owner[t];
     if (!blocker[q] || !s.may_join(t, p)) return;
-    ahead[t] = seed[t] || s.reaches(
-                              t, -dir, [&](std::int32_t u) { return s.owner[u] == p; },
-                              [&](std::int32_t u) { return s.owner[u] == q && s.may_join(u, p); });
+    ahead[t] =
+        seed[t] ||
+        (ahead_dir && s.reaches(
+                          t, -*ahead_dir, [&](std::int32_t u) { return s.owner[u] == p; },
+                          [&](std::int32_t u) { return s.owner[u] == q && s.may_join(u, p); }));
   });
-  std::vector<std::int32_t> move;
-  for (const std::vector<std::int32_t>& piece : marked_components(tets, ahead)) {
+  std::vector<std::vector<std::int32_t>> pieces;
+  for (std::vector<std::int32_t>& piece : marked_components(tets, ahead))
     // Whole face-connected pieces where the way is found blocked.
-    if (std::none_of(piece.begin(), piece.end(), [&](std::int32_t t) { return seed[t] != 0; }))
-      continue;
-    move.insert(move.end(), piece.begin(), piece.end());
-  }
-  if (move.empty()) return {};
-  for (std::int32_t t : move) s.owner[t] = p;
-  // Pieces the blockers fall into, other than the largest of each, go to p when it may take
-  // them all (slivers left between the tets moved and the surface), else to a neighbour that
-  // can (give_away()).
-  std::vector<std::int32_t> moved_label = label;
-  for (std::int32_t t : move) moved_label[t] = s.label_of[p];
-  std::int32_t num_pieces = 0;
-  const std::vector<std::int32_t> piece_of =
-      detail::label_components(tets, moved_label, region, num_pieces);
-  std::vector<double> piece_volume(num_pieces, 0.0);
-  std::vector<std::vector<std::int32_t>> members(num_pieces);
-  for (std::int32_t t = 0; t < n; ++t)
-    if (blocker[s.owner[t]] && s.owner[t] != p)
-      piece_volume[piece_of[t]] += s.volume[t], members[piece_of[t]].push_back(t);
-  std::vector<std::int32_t> largest(num_parts, -1);
-  for (std::int32_t c = 0; c < num_pieces; ++c) {
-    if (members[c].empty()) continue;
-    std::int32_t& l = largest[s.owner[members[c].front()]];
-    if (l < 0 || piece_volume[c] > piece_volume[l]) l = c;
-  }
-  for (std::int32_t c = 0; c < num_pieces; ++c) {
-    if (members[c].empty() || largest[s.owner[members[c].front()]] == c) continue;
-    if (std::all_of(members[c].begin(), members[c].end(),
-                    [&](std::int32_t t) { return s.may_join(t, p); })) {
-      for (std::int32_t t : members[c]) s.owner[t] = p;
-    } else {
-      give_away(s, members[c], false);
+    if (std::any_of(piece.begin(), piece.end(), [&](std::int32_t t) { return seed[t] != 0; }))
+      pieces.push_back(std::move(piece));
+  if (pieces.empty()) return {};
+
+  // Moves tets to p. Clearing a way, the pieces the blockers then fall into, other than the
+  // largest of each, go to p when it may take them all (slivers left between the tets moved and
+  // the surface), else to a neighbour that can (give_away()); filling a gap, they stay (a part
+  // that falls apart was no thin skin over the gap). Undone, and false, when that leaves more
+  // parts.
+  auto take = [&](const std::vector<std::int32_t>& move) {
+    const std::vector<std::int32_t> owner_before = s.owner;
+    for (std::int32_t t : move) s.owner[t] = p;
+    std::vector<std::int32_t> moved_label(n);
+    for (std::int32_t t = 0; t < n; ++t) moved_label[t] = s.label_of[s.owner[t]];
+    std::int32_t num_pieces = 0;
+    const std::vector<std::int32_t> piece_of =
+        detail::label_components(tets, moved_label, region, num_pieces);
+    std::vector<double> piece_volume(num_pieces, 0.0);
+    std::vector<std::vector<std::int32_t>> members(num_pieces);
+    for (std::int32_t t = 0; t < n; ++t)
+      if (blocker[s.owner[t]] && s.owner[t] != p)
+        piece_volume[piece_of[t]] += s.volume[t], members[piece_of[t]].push_back(t);
+    std::vector<std::int32_t> largest(num_parts, -1);
+    for (std::int32_t c = 0; c < num_pieces; ++c) {
+      if (members[c].empty()) continue;
+      std::int32_t& l = largest[s.owner[members[c].front()]];
+      if (l < 0 || piece_volume[c] > piece_volume[l]) l = c;
+    }
+    for (std::int32_t c = 0; c < num_pieces && ahead_dir; ++c) {
+      if (members[c].empty() || largest[s.owner[members[c].front()]] == c) continue;
+      if (std::all_of(members[c].begin(), members[c].end(),
+                      [&](std::int32_t t) { return s.may_join(t, p); })) {
+        for (std::int32_t t : members[c]) s.owner[t] = p;
+      } else {
+        give_away(s, members[c], false);
+      }
+    }
+    for (std::int32_t t = 0; t < n; ++t) moved_label[t] = s.label_of[s.owner[t]];
+    std::int32_t parts_after = 0;
+    detail::label_components(tets, moved_label, region, parts_after);
+    if (parts_after <= num_parts) return true;
+    s.owner = owner_before;
+    return false;
+  };
+
+  bool taken = false;
+  if (ahead_dir) {
+    // The whole way at once: clearing part of it frees nothing.
+    std::vector<std::int32_t> move;
+    for (const std::vector<std::int32_t>& piece : pieces)
+      move.insert(move.end(), piece.begin(), piece.end());
+    taken = take(move);
+  } else {
+    // Gaps one piece at a time, each reaching p through at most two rings of its part's tets
+    // that p may take when it does not touch p (smoothing moved the interface off the tets).
+    for (std::vector<std::int32_t>& piece : pieces) {
+      const std::int32_t q = s.owner[piece.front()];
+      std::vector<char> in_piece(n, 0);
+      for (std::int32_t t : piece) in_piece[t] = 1;
+      auto touches_p = [&] {
+        for (std::int32_t t : piece)
+          for (std::int32_t u : tets.neighbors[t])
+            if (u >= 0 && s.owner[u] == p) return true;
+        return false;
+      };
+      for (int ring = 0; ring < 2 && !touches_p(); ++ring) {
+        std::vector<std::int32_t> grown;
+        for (std::int32_t t : piece)
+          for (std::int32_t u : tets.neighbors[t])
+            if (u >= 0 && !in_piece[u] && s.owner[u] == q && s.may_join(u, p))
+              in_piece[u] = 1, grown.push_back(u);
+        piece.insert(piece.end(), grown.begin(), grown.end());
+      }
+      if (touches_p()) taken |= take(piece);
     }
   }
-  move.clear();
+  if (!taken) return {};
+  std::vector<std::int32_t> moved_label(n), move;
   for (std::int32_t t = 0; t < n; ++t) {
     moved_label[t] = s.label_of[s.owner[t]];
     if (moved_label[t] != label[t]) move.push_back(t);
   }
-  // The share before is counted only when the one after exceeds kCleanSandwichShare: counting takes
-  // a walk per tet and direction used.
-  std::int32_t parts_after = 0;
-  detail::label_components(tets, moved_label, region, parts_after);
-  if (parts_after > num_parts) return {};
-  const double share_after = count_sandwiched(s, moved_label).worst_share;
-  if (share_after > kCleanSandwichShare && share_after > count_sandwiched(s, label).worst_share)
-    return {};
+  // The share before is counted only when the one after exceeds kCleanSandwichShare: counting
+  // takes a walk per tet and direction used.
+  if (keep_sandwich_share) {
+    const double share_after = count_sandwiched(s, moved_label).worst_share;
+    if (share_after > kCleanSandwichShare && share_after > count_sandwiched(s, label).worst_share)
+      return {};
+  }
   label = std::move(moved_label);
   return move;
+}
+
+}  // namespace
+
+std::vector<std::int32_t> clear_way(const TetMesh& tets, std::vector<std::int32_t>& label,
+                                    const std::vector<std::int32_t>& region,
+                                    const std::vector<std::vector<Vec3>>& directions,
+                                    const TetAllowsLabel& allows, std::int32_t part_tet,
+                                    const Vec3& dir, const std::vector<Vec3>& obstacle_points) {
+  return take_over(tets, label, region, directions, allows, part_tet, &dir, obstacle_points, true);
+}
+
+std::vector<std::int32_t> fill_gaps(const TetMesh& tets, std::vector<std::int32_t>& label,
+                                    const std::vector<std::int32_t>& region,
+                                    const std::vector<std::vector<Vec3>>& directions,
+                                    const TetAllowsLabel& allows, std::int32_t part_tet,
+                                    const std::vector<Vec3>& gap_points) {
+  return take_over(tets, label, region, directions, allows, part_tet, nullptr, gap_points, false);
 }
 
 }  // namespace dhfcast

@@ -155,6 +155,19 @@ class PartScene {
   RTCScene scene_ = nullptr;
 };
 
+// The deepest point of the stretch (t0, t1) of origin + t * dir is farther than tolerance_mm
+// from part p's boundary: the middle first (usually the deepest), then every half tolerance, as
+// `dhfcast check` steps.
+bool deeper_than(const PartScene& scene, std::int32_t p, const Vec3& origin, const Vec3& dir,
+                 double t0, double t1, double tolerance_mm) {
+  if (tolerance_mm == 0.0) return true;
+  auto far = [&](double t) { return !scene.near(p, origin + t * dir, tolerance_mm); };
+  if (far(0.5 * (t0 + t1))) return true;
+  for (double t = t0 + tolerance_mm; t < t1 - tolerance_mm; t += 0.5 * tolerance_mm)
+    if (far(t)) return true;
+  return false;
+}
+
 // Points just inside a mesh's boundary, where a moving part first touches another: near each
 // corner of each triangle and at the centres of its k x k sub-triangles (k so that they lie at
 // most about `spacing` apart), moved `inset` against the triangle's normal. All lie strictly
@@ -350,18 +363,8 @@ class Collisions {
                           if (stop && stop->load(std::memory_order_relaxed)) return;
                           scene_.crossings(samples[s], dir, hits, crossings);
                           const Vec3& origin = samples[s];
-                          // The middle first (usually the deepest point of a way through), then
-                          // every half tolerance, as `dhfcast check` steps.
                           auto deep = [&](std::int32_t q, double t_in, double t_out) {
-                            if (tolerance_mm_ == 0.0) return true;
-                            auto far = [&](double t) {
-                              return !scene_.near(q, origin + t * dir, tolerance_mm_);
-                            };
-                            if (far(0.5 * (t_in + t_out))) return true;
-                            for (double t = t_in + tolerance_mm_; t < t_out - tolerance_mm_;
-                                 t += 0.5 * tolerance_mm_)
-                              if (far(t)) return true;
-                            return false;
+                            return deeper_than(scene_, q, origin, dir, t_in, t_out, tolerance_mm_);
                           };
                           mark_obstacles(crossings, p, tolerance_mm_, deep, entered_at, found);
                           for (const Stretch& stretch : found) obstacle(s, stretch);
@@ -462,6 +465,70 @@ std::vector<Obstruction> obstructions(const std::vector<Part>& parts, std::int32
   if (p < 0 || p >= static_cast<std::int32_t>(parts.size()))
     throw Error(ErrorCode::Internal, "parts: no part " + std::to_string(p));
   return Collisions(parts, tolerance_mm).obstructions(p, dir);
+}
+
+std::vector<Obstruction> dhf_gaps(const std::vector<Part>& parts, std::int32_t p,
+                                  std::int64_t lines, double epsilon_mm) {
+  if (p < 0 || p >= static_cast<std::int32_t>(parts.size()))
+    throw Error(ErrorCode::Internal, "parts: no part " + std::to_string(p));
+  if (lines < 1 || lines > 100'000'000 || !(epsilon_mm >= 0.0))
+    throw Error(ErrorCode::InvalidOptions, "dhf_gaps: lines must be in 1..1e8, epsilon >= 0");
+  const PartScene scene(parts);
+  const Vec3 d = parts[p].direction.normalized(), u = d.unitOrthogonal(), v = d.cross(u);
+  Box3 box{Vec3::Constant(INFINITY), Vec3::Constant(-INFINITY)};  // in (u, v, d)
+  for (const Vec3& x : parts[p].mesh.vertices) {
+    const Vec3 local(x.dot(u), x.dot(v), x.dot(d));
+    box.min = box.min.cwiseMin(local);
+    box.max = box.max.cwiseMax(local);
+  }
+  if (parts[p].mesh.vertices.empty()) return {};
+  // Lines at the centres of square cells, starting below the part's box.
+  const double width = box.max.x() - box.min.x(), depth = box.max.y() - box.min.y();
+  const double spacing_mm =
+      std::max(std::sqrt(width * depth / static_cast<double>(lines)), 1e-6 * (width + depth));
+  const auto nu = std::max<std::int64_t>(1, std::llround(std::ceil(width / spacing_mm)));
+  const auto nv = std::max<std::int64_t>(1, std::llround(std::ceil(depth / spacing_mm)));
+  const double w0 = box.min.z() - 1.0;
+  std::vector<std::vector<Obstruction>> per_line(static_cast<std::size_t>(nu * nv));
+  tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nu * nv, 1024),
+                    [&](const tbb::blocked_range<std::int64_t>& range) {
+                      std::vector<std::uint64_t> hits;
+                      std::vector<Crossing> crossings;
+                      for (std::int64_t k = range.begin(); k != range.end(); ++k) {
+                        const Vec3 origin =
+                            (box.min.x() + (static_cast<double>(k % nu) + 0.5) * spacing_mm) * u +
+                            (box.min.y() + (static_cast<double>(k / nu) + 0.5) * spacing_mm) * v +
+                            w0 * d;
+                        scene.crossings(origin, d, hits, crossings);
+                        // The part's intervals along the line; repeated hits on a shared edge count
+                        // once.
+                        bool inside = false;
+                        double left = -INFINITY;  // where the line last left the part
+                        for (const Crossing& c : crossings) {
+                          if (c.part != p) continue;
+                          if (!c.exits && !inside) {
+                            inside = true;
+                            if (left > -INFINITY && c.t_mm - left > 2 * epsilon_mm &&
+                                deeper_than(scene, p, origin, d, left, c.t_mm, epsilon_mm)) {
+                              std::int32_t met = -1;  // the first other part entered in the gap
+                              for (const Crossing& o : crossings)
+                                if (o.part != p && !o.exits && o.t_mm >= left && o.t_mm < c.t_mm) {
+                                  met = o.part;
+                                  break;
+                                }
+                              per_line[k].push_back({met, origin + left * d, origin + c.t_mm * d});
+                            }
+                          } else if (c.exits && inside) {
+                            inside = false;
+                            left = c.t_mm;
+                          }
+                        }
+                      }
+                    });
+  std::vector<Obstruction> out;
+  for (const std::vector<Obstruction>& line : per_line)
+    out.insert(out.end(), line.begin(), line.end());
+  return out;
 }
 
 }  // namespace dhfcast

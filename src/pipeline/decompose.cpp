@@ -21,6 +21,10 @@ constexpr std::int32_t kAssemblyDirections = 64;
 
 // Ways out cleared at most, one per round, when no assembly order exists (see clear_way()).
 constexpr int kMaxWayClearings = 8;
+// Rounds of gap filling at most (see fill_gap_rounds()), and the lines per part that look for
+// gaps: 100 times `dhfcast check`'s, so a gap that check meets once is met about 100 times.
+constexpr int kMaxGapFills = 4;
+constexpr std::int64_t kGapLines = 200'000;
 
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) {
@@ -236,6 +240,7 @@ struct PartsContext {
 struct AssembledParts {
   PartsStage parts;
   std::vector<WayClearing> clearings;
+  std::vector<GapFilling> fillings;
 };
 
 // Makes a candidate labeling into parts. When they have no assembly order, a blocked part takes
@@ -301,6 +306,70 @@ AssembledParts assemble_parts(const PartsContext& c, const RepairedCandidate& ca
     if (!cleared) break;
   }
   return out;
+}
+
+// Where each part is not a double height field: dhf_gaps() of every part.
+std::vector<std::vector<Obstruction>> all_gaps(const PartsContext& c, const PartsStage& stage) {
+  std::vector<std::vector<Obstruction>> gaps;
+  for (std::int32_t p = 0; p < static_cast<std::int32_t>(stage.parts.size()); ++p)
+    gaps.push_back(dhf_gaps(stage.parts, p, kGapLines, c.opts.access.epsilon_mm));
+  return gaps;
+}
+
+std::int32_t count_gaps(const std::vector<std::vector<Obstruction>>& gaps) {
+  std::size_t n = 0;
+  for (const std::vector<Obstruction>& g : gaps) n += g.size();
+  return static_cast<std::int32_t>(n);
+}
+
+// Where the finished parts are still not double height fields (the smoothed interfaces of a
+// part wrap around a neighbour's, which the tet-level repair cannot see), each part takes the
+// tets of its neighbours in its gaps (fill_gaps()) and the parts are made again; a round is kept
+// when it leaves fewer gap lines, no more parts and no more of them blocked.
+void fill_gap_rounds(const PartsContext& c, const std::vector<std::int32_t>& region,
+                     AssembledParts& assembled) {
+  const TetAllowsLabel label_allows = [&](std::int32_t t, std::int32_t r, std::int32_t l) {
+    return r != 0 || c.access.feasible.get(t, l);
+  };
+  const std::vector<Vec3> sphere = fibonacci_directions(kAssemblyDirections);
+  PartsStage& stage = assembled.parts;
+  std::vector<std::vector<Obstruction>> gaps = all_gaps(c, stage);
+  for (int round = 0; round < kMaxGapFills && count_gaps(gaps) > 0; ++round) {
+    std::vector<std::int32_t> label = stage.label;
+    std::vector<std::int32_t> moved;
+    for (std::int32_t p = 0; p < static_cast<std::int32_t>(stage.parts.size()); ++p) {
+      std::vector<Vec3> points;
+      for (const Obstruction& o : gaps[p]) {
+        if (o.part < 0) continue;  // outside the solid: nothing to fill
+        // A quarter tet apart, ends included: the chain of tets they seed reaches the part.
+        const int steps =
+            std::clamp(static_cast<int>(4 * (o.to - o.from).norm() / c.tet_size), 1, 256);
+        for (int i = 0; i <= steps; ++i)
+          points.push_back(o.from + double(i) / steps * (o.to - o.from));
+      }
+      // A part whose tet is already taken by an earlier part of this round waits for the next.
+      const std::int32_t tet = stage.parts[p].tets.front();
+      if (points.empty() || label[tet] != stage.label[tet]) continue;
+      const std::vector<std::int32_t> m =
+          fill_gaps(c.tets, label, region, c.region_directions, label_allows, tet, points);
+      moved.insert(moved.end(), m.begin(), m.end());
+    }
+    if (moved.empty()) break;
+    PartsStage tried = make_parts(c.solid, c.tets, label, region, c.region_directions, c.access,
+                                  label_allows, c.opts, sphere);
+    std::vector<std::vector<Obstruction>> tried_gaps = all_gaps(c, tried);
+    if (count_gaps(tried_gaps) >= count_gaps(gaps) || tried.parts.size() > stage.parts.size() ||
+        tried.assembly.blocked > stage.assembly.blocked)
+      break;
+    GapFilling f;
+    f.tets = static_cast<std::int32_t>(moved.size());
+    for (std::int32_t t : moved) f.volume_mm3 += tet_volume(c.tets, t);
+    f.gap_lines_before = count_gaps(gaps);
+    f.gap_lines_after = count_gaps(tried_gaps);
+    assembled.fillings.push_back(f);
+    stage = std::move(tried);
+    gaps = std::move(tried_gaps);
+  }
 }
 
 }  // namespace
@@ -457,6 +526,7 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
       chosen = ranked[k];
     }
   }
+  fill_gap_rounds(context, repaired[chosen].region, stage);
   d.sandwich = std::move(repaired[chosen].repair);
   const LabelingCandidate& candidate = candidates[repaired[chosen].index];
   d.labeling.best_restart = candidate.restart;
@@ -473,6 +543,7 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   d.assembly = std::move(stage.parts.assembly);
   d.assembly_tolerance_mm = stage.parts.assembly_tolerance_mm;
   d.way_clearings = std::move(stage.clearings);
+  d.gap_fillings = std::move(stage.fillings);
   report("parts", 1.0);
   d.timings.parts = seconds_since(t0);
 

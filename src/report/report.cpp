@@ -188,6 +188,13 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                          {"blocked_parts_before", c.blocked_before},
                          {"blocked_parts_after", c.blocked_after}});
   j["assembly_repair"] = clearings;
+  ordered_json fillings = ordered_json::array();
+  for (const GapFilling& f : d.gap_fillings)
+    fillings.push_back({{"tets", f.tets},
+                        {"volume_mm3", f.volume_mm3},
+                        {"gap_lines_before", f.gap_lines_before},
+                        {"gap_lines_after", f.gap_lines_after}});
+  j["dhf_repair"] = fillings;
   j["manifold_repair"] = {{"moved_tets", d.manifold.moved_tets},
                           {"moved_volume_mm3", d.manifold.moved_volume_mm3},
                           {"nonmanifold_vertices", d.manifold.nonmanifold_vertices}};
