@@ -722,30 +722,32 @@ std::vector<std::int32_t> take_over(const TetMesh& tets, std::vector<std::int32_
     for (std::int32_t t : move) s.owner[t] = p;
     std::vector<std::int32_t> moved_label(n);
     for (std::int32_t t = 0; t < n; ++t) moved_label[t] = s.label_of[s.owner[t]];
-    std::int32_t num_pieces = 0;
-    const std::vector<std::int32_t> piece_of =
-        detail::label_components(tets, moved_label, region, num_pieces);
-    std::vector<double> piece_volume(num_pieces, 0.0);
-    std::vector<std::vector<std::int32_t>> members(num_pieces);
-    for (std::int32_t t = 0; t < n; ++t)
-      if (blocker[s.owner[t]] && s.owner[t] != p)
-        piece_volume[piece_of[t]] += s.volume[t], members[piece_of[t]].push_back(t);
-    std::vector<std::int32_t> largest(num_parts, -1);
-    for (std::int32_t c = 0; c < num_pieces; ++c) {
-      if (members[c].empty()) continue;
-      std::int32_t& l = largest[s.owner[members[c].front()]];
-      if (l < 0 || piece_volume[c] > piece_volume[l]) l = c;
-    }
-    for (std::int32_t c = 0; c < num_pieces && ahead_dir; ++c) {
-      if (members[c].empty() || largest[s.owner[members[c].front()]] == c) continue;
-      if (std::all_of(members[c].begin(), members[c].end(),
-                      [&](std::int32_t t) { return s.may_join(t, p); })) {
-        for (std::int32_t t : members[c]) s.owner[t] = p;
-      } else {
-        give_away(s, members[c], false);
+    if (ahead_dir) {
+      std::int32_t num_pieces = 0;
+      const std::vector<std::int32_t> piece_of =
+          detail::label_components(tets, moved_label, region, num_pieces);
+      std::vector<double> piece_volume(num_pieces, 0.0);
+      std::vector<std::vector<std::int32_t>> members(num_pieces);
+      for (std::int32_t t = 0; t < n; ++t)
+        if (blocker[s.owner[t]] && s.owner[t] != p)
+          piece_volume[piece_of[t]] += s.volume[t], members[piece_of[t]].push_back(t);
+      std::vector<std::int32_t> largest(num_parts, -1);
+      for (std::int32_t c = 0; c < num_pieces; ++c) {
+        if (members[c].empty()) continue;
+        std::int32_t& l = largest[s.owner[members[c].front()]];
+        if (l < 0 || piece_volume[c] > piece_volume[l]) l = c;
       }
+      for (std::int32_t c = 0; c < num_pieces; ++c) {
+        if (members[c].empty() || largest[s.owner[members[c].front()]] == c) continue;
+        if (std::all_of(members[c].begin(), members[c].end(),
+                        [&](std::int32_t t) { return s.may_join(t, p); })) {
+          for (std::int32_t t : members[c]) s.owner[t] = p;
+        } else {
+          give_away(s, members[c], false);
+        }
+      }
+      for (std::int32_t t = 0; t < n; ++t) moved_label[t] = s.label_of[s.owner[t]];
     }
-    for (std::int32_t t = 0; t < n; ++t) moved_label[t] = s.label_of[s.owner[t]];
     std::int32_t parts_after = 0;
     detail::label_components(tets, moved_label, region, parts_after);
     if (parts_after <= num_parts) return true;
