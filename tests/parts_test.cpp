@@ -1476,7 +1476,7 @@ TEST(DhfGaps, LinesThroughAPartsMouthCrossTheNeighbourBetweenItsJaws) {
   ASSERT_EQ(parts.size(), 2u);
   const std::int32_t p = parts[0].direction_index == 0 ? 0 : 1, q = 1 - p;
   constexpr std::int64_t kLines = 900;  // over P's 30 x 30 mm footprint
-  const std::vector<Obstruction> gaps = dhf_gaps(parts, p, kLines, kTolerance_mm);
+  const std::vector<Obstruction> gaps = dhf_gaps(parts, kLines, kTolerance_mm)[p];
   // The mouth is two thirds of the footprint.
   EXPECT_GT(gaps.size(), 0.6 * kLines);
   EXPECT_LT(gaps.size(), 0.72 * kLines);
@@ -1488,8 +1488,8 @@ TEST(DhfGaps, LinesThroughAPartsMouthCrossTheNeighbourBetweenItsJaws) {
     EXPECT_LT(o.from.x(), 30.0);
   }
   // Along x, Q is one interval on every line; a gap no deeper than epsilon is none.
-  EXPECT_TRUE(dhf_gaps(parts, q, kLines, kTolerance_mm).empty());
-  EXPECT_TRUE(dhf_gaps(parts, p, kLines, 5.0).empty());
+  EXPECT_TRUE(dhf_gaps(parts, kLines, kTolerance_mm)[q].empty());
+  EXPECT_TRUE(dhf_gaps(parts, kLines, 5.0)[p].empty());
 }
 
 TEST(FillGaps, TheTongueBetweenThePartsJawsJoinsIt) {
@@ -1499,7 +1499,8 @@ TEST(FillGaps, TheTongueBetweenThePartsJawsJoinsIt) {
   const auto parts = extract_parts(g.mesh, label, zeros(g), dirs);
   const std::int32_t p = parts[0].direction_index == 0 ? 0 : 1;
   std::vector<Vec3> points;  // along each gap, 1 mm apart, as the pipeline seeds them
-  for (const Obstruction& o : dhf_gaps(parts, p, 100, kTolerance_mm))
+  const std::vector<std::vector<Obstruction>> gaps = dhf_gaps(parts, 100, kTolerance_mm);
+  for (const Obstruction& o : gaps[p])
     for (int i = 0; i <= 10; ++i) points.push_back(o.from + 0.1 * i * (o.to - o.from));
   const std::vector<std::int32_t> moved =
       fill_gaps(g.mesh, label, zeros(g), dirs, kAllowAll, parts[p].tets.front(), points);
@@ -1512,7 +1513,7 @@ TEST(FillGaps, TheTongueBetweenThePartsJawsJoinsIt) {
   EXPECT_EQ(moved, expected);
   const auto filled = extract_parts(g.mesh, label, zeros(g), dirs);
   ASSERT_EQ(filled.size(), 2u);
-  for (std::int32_t k = 0; k < 2; ++k) EXPECT_TRUE(dhf_gaps(filled, k, 900, kTolerance_mm).empty());
+  for (std::int32_t k = 0; k < 2; ++k) EXPECT_TRUE(dhf_gaps(filled, 900, kTolerance_mm)[k].empty());
   // A part that may not take the tongue keeps its gap.
   auto kept = per_cell(g, c_around_a_tongue);
   const TetAllowsLabel tongue_forbidden = [&](std::int32_t t, std::int32_t, std::int32_t l) {

@@ -311,12 +311,12 @@ struct Obstruction {
 std::vector<Obstruction> obstructions(const std::vector<Part>& parts, std::int32_t p,
                                       const Vec3& dir, double tolerance_mm);
 
-// Where part p is not a double height field along its direction: on about `lines` lines along d,
-// a square grid over its footprint's bounding rectangle, every stretch between two of its intervals
-// whose deepest point is farther than epsilon_mm from its boundary (`dhfcast check`'s rule), bottom
-// to top. Obstruction::part is the first other part the stretch enters, -1 when none (the gap is
-// outside the solid). Deterministic.
-std::vector<Obstruction> dhf_gaps(const std::vector<Part>& parts, std::int32_t p,
-                                  std::int64_t lines, double epsilon_mm);
+// Where each part is not a double height field along its direction: on about `lines` lines along
+// d, a square grid over the part's footprint's bounding rectangle, every stretch between two of
+// its intervals whose deepest point is farther than epsilon_mm from its boundary (`dhfcast
+// check`'s rule), bottom to top; per part. Obstruction::part is the first other part the stretch
+// enters, -1 when none (the gap is outside the solid). Deterministic.
+std::vector<std::vector<Obstruction>> dhf_gaps(const std::vector<Part>& parts, std::int64_t lines,
+                                               double epsilon_mm);
 
 }  // namespace dhfcast

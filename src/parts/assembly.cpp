@@ -467,68 +467,78 @@ std::vector<Obstruction> obstructions(const std::vector<Part>& parts, std::int32
   return Collisions(parts, tolerance_mm).obstructions(p, dir);
 }
 
-std::vector<Obstruction> dhf_gaps(const std::vector<Part>& parts, std::int32_t p,
-                                  std::int64_t lines, double epsilon_mm) {
-  if (p < 0 || p >= static_cast<std::int32_t>(parts.size()))
-    throw Error(ErrorCode::Internal, "parts: no part " + std::to_string(p));
+namespace {
+
+// The gaps of part p on the line origin + t * dir, bottom to top (see dhf_gaps()).
+void line_gaps(const PartScene& scene, std::int32_t p, const Vec3& origin, const Vec3& dir,
+               double epsilon_mm, std::vector<std::uint64_t>& hits,
+               std::vector<Crossing>& crossings, std::vector<Obstruction>& out) {
+  scene.crossings(origin, dir, hits, crossings);
+  // The part's intervals along the line; repeated hits on a shared edge count once.
+  bool inside = false;
+  double left = -INFINITY;  // where the line last left the part
+  for (const Crossing& c : crossings) {
+    if (c.part != p) continue;
+    if (!c.exits && !inside) {
+      inside = true;
+      if (left > -INFINITY && c.t_mm - left > 2 * epsilon_mm &&
+          deeper_than(scene, p, origin, dir, left, c.t_mm, epsilon_mm)) {
+        std::int32_t met = -1;  // the first other part entered in the gap
+        for (const Crossing& o : crossings)
+          if (o.part != p && !o.exits && o.t_mm >= left && o.t_mm < c.t_mm) {
+            met = o.part;
+            break;
+          }
+        out.push_back({met, origin + left * dir, origin + c.t_mm * dir});
+      }
+    } else if (c.exits && inside) {
+      inside = false;
+      left = c.t_mm;
+    }
+  }
+}
+
+}  // namespace
+
+std::vector<std::vector<Obstruction>> dhf_gaps(const std::vector<Part>& parts, std::int64_t lines,
+                                               double epsilon_mm) {
   if (lines < 1 || lines > 100'000'000 || !(epsilon_mm >= 0.0))
     throw Error(ErrorCode::InvalidOptions, "dhf_gaps: lines must be in 1..1e8, epsilon >= 0");
   const PartScene scene(parts);
-  const Vec3 d = parts[p].direction.normalized(), u = d.unitOrthogonal(), v = d.cross(u);
-  Box3 box{Vec3::Constant(INFINITY), Vec3::Constant(-INFINITY)};  // in (u, v, d)
-  for (const Vec3& x : parts[p].mesh.vertices) {
-    const Vec3 local(x.dot(u), x.dot(v), x.dot(d));
-    box.min = box.min.cwiseMin(local);
-    box.max = box.max.cwiseMax(local);
+  std::vector<std::vector<Obstruction>> gaps(parts.size());
+  for (std::int32_t p = 0; p < static_cast<std::int32_t>(parts.size()); ++p) {
+    if (parts[p].mesh.vertices.empty()) continue;
+    const Vec3 d = parts[p].direction.normalized(), u = d.unitOrthogonal(), v = d.cross(u);
+    Box3 box{Vec3::Constant(INFINITY), Vec3::Constant(-INFINITY)};  // in (u, v, d)
+    for (const Vec3& x : parts[p].mesh.vertices) {
+      const Vec3 local(x.dot(u), x.dot(v), x.dot(d));
+      box.min = box.min.cwiseMin(local);
+      box.max = box.max.cwiseMax(local);
+    }
+    // Lines at the centres of square cells, starting below the part's box.
+    const double width = box.max.x() - box.min.x(), depth = box.max.y() - box.min.y();
+    const double spacing_mm =
+        std::max(std::sqrt(width * depth / static_cast<double>(lines)), 1e-6 * (width + depth));
+    const auto nu = std::max<std::int64_t>(1, std::llround(std::ceil(width / spacing_mm)));
+    const auto nv = std::max<std::int64_t>(1, std::llround(std::ceil(depth / spacing_mm)));
+    auto origin = [&](std::int64_t k) -> Vec3 {
+      return (box.min.x() + (static_cast<double>(k % nu) + 0.5) * spacing_mm) * u +
+             (box.min.y() + (static_cast<double>(k / nu) + 0.5) * spacing_mm) * v +
+             (box.min.z() - 1.0) * d;
+    };
+    std::vector<std::vector<Obstruction>> per_line(static_cast<std::size_t>(nu * nv));
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nu * nv, 1024),
+                      [&](const tbb::blocked_range<std::int64_t>& range) {
+                        std::vector<std::uint64_t> hits;
+                        std::vector<Crossing> crossings;
+                        for (std::int64_t k = range.begin(); k != range.end(); ++k)
+                          line_gaps(scene, p, origin(k), d, epsilon_mm, hits, crossings,
+                                    per_line[k]);
+                      });
+    for (const std::vector<Obstruction>& line : per_line)
+      gaps[p].insert(gaps[p].end(), line.begin(), line.end());
   }
-  if (parts[p].mesh.vertices.empty()) return {};
-  // Lines at the centres of square cells, starting below the part's box.
-  const double width = box.max.x() - box.min.x(), depth = box.max.y() - box.min.y();
-  const double spacing_mm =
-      std::max(std::sqrt(width * depth / static_cast<double>(lines)), 1e-6 * (width + depth));
-  const auto nu = std::max<std::int64_t>(1, std::llround(std::ceil(width / spacing_mm)));
-  const auto nv = std::max<std::int64_t>(1, std::llround(std::ceil(depth / spacing_mm)));
-  const double w0 = box.min.z() - 1.0;
-  std::vector<std::vector<Obstruction>> per_line(static_cast<std::size_t>(nu * nv));
-  tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nu * nv, 1024),
-                    [&](const tbb::blocked_range<std::int64_t>& range) {
-                      std::vector<std::uint64_t> hits;
-                      std::vector<Crossing> crossings;
-                      for (std::int64_t k = range.begin(); k != range.end(); ++k) {
-                        const Vec3 origin =
-                            (box.min.x() + (static_cast<double>(k % nu) + 0.5) * spacing_mm) * u +
-                            (box.min.y() + (static_cast<double>(k / nu) + 0.5) * spacing_mm) * v +
-                            w0 * d;
-                        scene.crossings(origin, d, hits, crossings);
-                        // The part's intervals along the line; repeated hits on a shared edge count
-                        // once.
-                        bool inside = false;
-                        double left = -INFINITY;  // where the line last left the part
-                        for (const Crossing& c : crossings) {
-                          if (c.part != p) continue;
-                          if (!c.exits && !inside) {
-                            inside = true;
-                            if (left > -INFINITY && c.t_mm - left > 2 * epsilon_mm &&
-                                deeper_than(scene, p, origin, d, left, c.t_mm, epsilon_mm)) {
-                              std::int32_t met = -1;  // the first other part entered in the gap
-                              for (const Crossing& o : crossings)
-                                if (o.part != p && !o.exits && o.t_mm >= left && o.t_mm < c.t_mm) {
-                                  met = o.part;
-                                  break;
-                                }
-                              per_line[k].push_back({met, origin + left * d, origin + c.t_mm * d});
-                            }
-                          } else if (c.exits && inside) {
-                            inside = false;
-                            left = c.t_mm;
-                          }
-                        }
-                      }
-                    });
-  std::vector<Obstruction> out;
-  for (const std::vector<Obstruction>& line : per_line)
-    out.insert(out.end(), line.begin(), line.end());
-  return out;
+  return gaps;
 }
 
 }  // namespace dhfcast

@@ -234,6 +234,19 @@ struct PartsContext {
   const AccessibilityField& access;
   const DecomposeOptions& opts;
   double tet_size;  // cube root of the mean tet volume
+  // Regions decomposed again keep no accessibility here: their tets may take any label of the
+  // region, and their parts keep their interfaces as they are.
+  TetAllowsLabel label_allows = [&feasible = access.feasible](std::int32_t t, std::int32_t r,
+                                                              std::int32_t l) {
+    return r != 0 || feasible.get(t, l);
+  };
+  std::vector<Vec3> sphere = fibonacci_directions(kAssemblyDirections);
+
+  PartsStage make(const std::vector<std::int32_t>& label,
+                  const std::vector<std::int32_t>& region) const {
+    return make_parts(solid, tets, label, region, region_directions, access, label_allows, opts,
+                      sphere);
+  }
 };
 
 // A candidate made into parts, and the ways cleared on the way.
@@ -248,17 +261,10 @@ struct AssembledParts {
 // stretches first, and the parts are made again; kept when fewer parts are left blocked, or the
 // same ones with fewer stretches of that way blocked.
 AssembledParts assemble_parts(const PartsContext& c, const RepairedCandidate& candidate) {
-  // Regions decomposed again keep no accessibility here: their tets may take any label of the
-  // region, and their parts keep their interfaces as they are.
-  const TetAllowsLabel label_allows = [&](std::int32_t t, std::int32_t r, std::int32_t l) {
-    return r != 0 || c.access.feasible.get(t, l);
-  };
-  const std::vector<Vec3> sphere = fibonacci_directions(kAssemblyDirections);
   const std::vector<std::int32_t>& region = candidate.region;
   AssembledParts out;
   PartsStage& stage = out.parts;
-  stage = make_parts(c.solid, c.tets, candidate.label, region, c.region_directions, c.access,
-                     label_allows, c.opts, sphere);
+  stage = c.make(candidate.label, region);
   for (int round = 0; round < kMaxWayClearings && !stage.assembly.found; ++round) {
     std::vector<Way> ways;
     const std::vector<bool> blocked = blocked_parts(stage.assembly);
@@ -275,11 +281,10 @@ AssembledParts assemble_parts(const PartsContext& c, const RepairedCandidate& ca
     for (const Way& way : ways) {
       std::vector<std::int32_t> cleared_label = stage.label;
       const std::vector<std::int32_t> moved =
-          clear_way(c.tets, cleared_label, region, c.region_directions, label_allows,
+          clear_way(c.tets, cleared_label, region, c.region_directions, c.label_allows,
                     stage.parts[way.part].tets.front(), way.dir, way.points);
       if (moved.empty()) continue;
-      PartsStage tried = make_parts(c.solid, c.tets, cleared_label, region, c.region_directions,
-                                    c.access, label_allows, c.opts, sphere);
+      PartsStage tried = c.make(cleared_label, region);
       if (tried.assembly.blocked > stage.assembly.blocked) continue;
       if (tried.assembly.blocked == stage.assembly.blocked) {
         const std::int32_t tet = stage.parts[way.part].tets.front();
@@ -308,14 +313,6 @@ AssembledParts assemble_parts(const PartsContext& c, const RepairedCandidate& ca
   return out;
 }
 
-// Where each part is not a double height field: dhf_gaps() of every part.
-std::vector<std::vector<Obstruction>> all_gaps(const PartsContext& c, const PartsStage& stage) {
-  std::vector<std::vector<Obstruction>> gaps;
-  for (std::int32_t p = 0; p < static_cast<std::int32_t>(stage.parts.size()); ++p)
-    gaps.push_back(dhf_gaps(stage.parts, p, kGapLines, c.opts.access.epsilon_mm));
-  return gaps;
-}
-
 std::int32_t count_gaps(const std::vector<std::vector<Obstruction>>& gaps) {
   std::size_t n = 0;
   for (const std::vector<Obstruction>& g : gaps) n += g.size();
@@ -328,12 +325,9 @@ std::int32_t count_gaps(const std::vector<std::vector<Obstruction>>& gaps) {
 // when it leaves fewer gap lines, no more parts and no more of them blocked.
 void fill_gap_rounds(const PartsContext& c, const std::vector<std::int32_t>& region,
                      AssembledParts& assembled) {
-  const TetAllowsLabel label_allows = [&](std::int32_t t, std::int32_t r, std::int32_t l) {
-    return r != 0 || c.access.feasible.get(t, l);
-  };
-  const std::vector<Vec3> sphere = fibonacci_directions(kAssemblyDirections);
   PartsStage& stage = assembled.parts;
-  std::vector<std::vector<Obstruction>> gaps = all_gaps(c, stage);
+  std::vector<std::vector<Obstruction>> gaps =
+      dhf_gaps(stage.parts, kGapLines, c.opts.access.epsilon_mm);
   for (int round = 0; round < kMaxGapFills && count_gaps(gaps) > 0; ++round) {
     std::vector<std::int32_t> label = stage.label;
     std::vector<std::int32_t> moved;
@@ -351,13 +345,13 @@ void fill_gap_rounds(const PartsContext& c, const std::vector<std::int32_t>& reg
       const std::int32_t tet = stage.parts[p].tets.front();
       if (points.empty() || label[tet] != stage.label[tet]) continue;
       const std::vector<std::int32_t> m =
-          fill_gaps(c.tets, label, region, c.region_directions, label_allows, tet, points);
+          fill_gaps(c.tets, label, region, c.region_directions, c.label_allows, tet, points);
       moved.insert(moved.end(), m.begin(), m.end());
     }
     if (moved.empty()) break;
-    PartsStage tried = make_parts(c.solid, c.tets, label, region, c.region_directions, c.access,
-                                  label_allows, c.opts, sphere);
-    std::vector<std::vector<Obstruction>> tried_gaps = all_gaps(c, tried);
+    PartsStage tried = c.make(label, region);
+    std::vector<std::vector<Obstruction>> tried_gaps =
+        dhf_gaps(tried.parts, kGapLines, c.opts.access.epsilon_mm);
     if (count_gaps(tried_gaps) >= count_gaps(gaps) || tried.parts.size() > stage.parts.size() ||
         tried.assembly.blocked > stage.assembly.blocked)
       break;
