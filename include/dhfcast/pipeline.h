@@ -68,6 +68,19 @@ struct GapFilling {
   std::int32_t gap_lines_before = 0, gap_lines_after = 0;
 };
 
+// A candidate labeling made into parts (ways cleared, gaps filled), in the order they were made.
+struct MadeCandidate {
+  std::int32_t restart = 0;  // the segmentation restart it came from
+  std::int32_t parts = 0;
+  bool assembly_found = false;
+  // Left after the gap filling, as GapFilling counts them; when dropped, as first made: a
+  // candidate tried for its gaps only is not pursued when it starts with more than the best has
+  // left.
+  std::int32_t gap_lines = 0;
+  bool dropped = false;
+  bool kept = false;
+};
+
 // The result of decompose().
 struct Decomposition {
   TetMesh tets;
@@ -88,6 +101,7 @@ struct Decomposition {
   AssemblyPlan assembly;
   std::vector<WayClearing> way_clearings;  // in the order they were made
   std::vector<GapFilling> gap_fillings;    // likewise, after the ways were cleared
+  std::vector<MadeCandidate> made_candidates;  // the one kept is marked
   std::vector<Mold> molds;  // one per part, in part order; empty when !make_molds
   double assembly_tolerance_mm = 0.0;  // depth into a part below which a move does not block
   StageTimes timings;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <tuple>
 
@@ -25,6 +26,11 @@ constexpr int kMaxWayClearings = 8;
 // gaps: 100 times `dhfcast check`'s, so a gap that check meets once is met about 100 times.
 constexpr int kMaxGapFills = 4;
 constexpr std::int64_t kGapLines = 200'000;
+// While gap lines are left, candidate labelings made into parts at least, among those whose
+// sandwich share at the tets is at most kGapCandidateShare times the least: elephant's others,
+// at 10 times and more, leave 5 to 7 times its gap lines (see decompose()).
+constexpr std::size_t kMadeCandidates = 3;
+constexpr double kGapCandidateShare = 4.0;
 
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) {
@@ -256,15 +262,13 @@ struct AssembledParts {
   std::vector<GapFilling> fillings;
 };
 
-// Makes a candidate labeling into parts. When they have no assembly order, a blocked part takes
-// the tets of other parts in its way along +d or -d (clear_way()), the side with fewer blocked
-// stretches first, and the parts are made again; kept when fewer parts are left blocked, or the
-// same ones with fewer stretches of that way blocked.
-AssembledParts assemble_parts(const PartsContext& c, const RepairedCandidate& candidate) {
-  const std::vector<std::int32_t>& region = candidate.region;
-  AssembledParts out;
+// When the parts have no assembly order, a blocked part takes the tets of other parts in its way
+// along +d or -d (clear_way()), the side with fewer blocked stretches first, and the parts are
+// made again; kept when fewer parts are left blocked, or the same ones with fewer stretches of
+// that way blocked.
+void clear_ways(const PartsContext& c, const std::vector<std::int32_t>& region,
+                AssembledParts& out) {
   PartsStage& stage = out.parts;
-  stage = c.make(candidate.label, region);
   for (int round = 0; round < kMaxWayClearings && !stage.assembly.found; ++round) {
     std::vector<Way> ways;
     const std::vector<bool> blocked = blocked_parts(stage.assembly);
@@ -310,7 +314,6 @@ AssembledParts assemble_parts(const PartsContext& c, const RepairedCandidate& ca
     }
     if (!cleared) break;
   }
-  return out;
 }
 
 std::int32_t count_gaps(const std::vector<std::vector<Obstruction>>& gaps) {
@@ -319,51 +322,72 @@ std::int32_t count_gaps(const std::vector<std::vector<Obstruction>>& gaps) {
   return static_cast<std::int32_t>(n);
 }
 
+// Points a quarter tet apart from a to b, ends included: the chain of tets they seed is unbroken.
+void add_points_along(const Vec3& a, const Vec3& b, double tet_size, std::vector<Vec3>& points) {
+  const int steps = std::clamp(static_cast<int>(4 * (b - a).norm() / tet_size), 1, 256);
+  for (int i = 0; i <= steps; ++i) points.push_back(a + double(i) / steps * (b - a));
+}
+
 // Where the finished parts are still not double height fields (the smoothed interfaces of a
 // part wrap around a neighbour's, which the tet-level repair cannot see), each part takes the
 // tets of its neighbours in its gaps (fill_gaps()) and the parts are made again; a round is kept
-// when it leaves fewer gap lines, no more parts and no more of them blocked.
-void fill_gap_rounds(const PartsContext& c, const std::vector<std::int32_t>& region,
-                     AssembledParts& assembled) {
+// when it leaves fewer gap lines, no more parts and no more of them blocked. Returns the gap lines
+// left.
+std::int32_t fill_gap_rounds(const PartsContext& c, const std::vector<std::int32_t>& region,
+                             AssembledParts& assembled) {
   PartsStage& stage = assembled.parts;
   std::vector<std::vector<Obstruction>> gaps =
       dhf_gaps(stage.parts, kGapLines, c.opts.access.epsilon_mm);
   for (int round = 0; round < kMaxGapFills && count_gaps(gaps) > 0; ++round) {
-    std::vector<std::int32_t> label = stage.label;
-    std::vector<std::int32_t> moved;
-    for (std::int32_t p = 0; p < static_cast<std::int32_t>(stage.parts.size()); ++p) {
-      std::vector<Vec3> points;
-      for (const Obstruction& o : gaps[p]) {
-        if (o.part < 0) continue;  // outside the solid: nothing to fill
-        // A quarter tet apart, ends included: the chain of tets they seed reaches the part.
-        const int steps =
-            std::clamp(static_cast<int>(4 * (o.to - o.from).norm() / c.tet_size), 1, 256);
-        for (int i = 0; i <= steps; ++i)
-          points.push_back(o.from + double(i) / steps * (o.to - o.from));
+    const auto n = static_cast<std::int32_t>(stage.parts.size());
+    std::vector<std::vector<Vec3>> points(n);  // what each part takes
+    for (std::int32_t p = 0; p < n; ++p)
+      for (const Obstruction& g : gaps[p])
+        if (g.part >= 0) add_points_along(g.from, g.to, c.tet_size, points[p]);
+    // All parts take their share at once; when that is not kept, each part alone, the one with
+    // most to take first.
+    std::vector<std::int32_t> takers;
+    for (std::int32_t p = 0; p < n; ++p)
+      if (!points[p].empty()) takers.push_back(p);
+    std::stable_sort(takers.begin(), takers.end(), [&](std::int32_t a, std::int32_t b) {
+      return points[a].size() > points[b].size();
+    });
+    std::vector<std::vector<std::int32_t>> tries{takers};
+    if (takers.size() > 1)
+      for (std::int32_t p : takers) tries.push_back({p});
+    bool kept = false;
+    for (const std::vector<std::int32_t>& parts : tries) {
+      std::vector<std::int32_t> label = stage.label;
+      std::vector<std::int32_t> moved;
+      for (std::int32_t p : parts) {
+        // A part whose tet an earlier one took waits for the next round.
+        const std::int32_t tet = stage.parts[p].tets.front();
+        if (label[tet] != stage.label[tet]) continue;
+        const std::vector<std::int32_t> m =
+            fill_gaps(c.tets, label, region, c.region_directions, c.label_allows, tet, points[p]);
+        moved.insert(moved.end(), m.begin(), m.end());
       }
-      // A part whose tet is already taken by an earlier part of this round waits for the next.
-      const std::int32_t tet = stage.parts[p].tets.front();
-      if (points.empty() || label[tet] != stage.label[tet]) continue;
-      const std::vector<std::int32_t> m =
-          fill_gaps(c.tets, label, region, c.region_directions, c.label_allows, tet, points);
-      moved.insert(moved.end(), m.begin(), m.end());
-    }
-    if (moved.empty()) break;
-    PartsStage tried = c.make(label, region);
-    std::vector<std::vector<Obstruction>> tried_gaps =
-        dhf_gaps(tried.parts, kGapLines, c.opts.access.epsilon_mm);
-    if (count_gaps(tried_gaps) >= count_gaps(gaps) || tried.parts.size() > stage.parts.size() ||
-        tried.assembly.blocked > stage.assembly.blocked)
+      if (moved.empty()) continue;
+      PartsStage tried = c.make(label, region);
+      std::vector<std::vector<Obstruction>> tried_gaps =
+          dhf_gaps(tried.parts, kGapLines, c.opts.access.epsilon_mm);
+      if (count_gaps(tried_gaps) >= count_gaps(gaps) || tried.parts.size() > stage.parts.size() ||
+          tried.assembly.blocked > stage.assembly.blocked)
+        continue;
+      GapFilling f;
+      f.tets = static_cast<std::int32_t>(moved.size());
+      for (std::int32_t t : moved) f.volume_mm3 += tet_volume(c.tets, t);
+      f.gap_lines_before = count_gaps(gaps);
+      f.gap_lines_after = count_gaps(tried_gaps);
+      assembled.fillings.push_back(f);
+      stage = std::move(tried);
+      gaps = std::move(tried_gaps);
+      kept = true;
       break;
-    GapFilling f;
-    f.tets = static_cast<std::int32_t>(moved.size());
-    for (std::int32_t t : moved) f.volume_mm3 += tet_volume(c.tets, t);
-    f.gap_lines_before = count_gaps(gaps);
-    f.gap_lines_after = count_gaps(tried_gaps);
-    assembled.fillings.push_back(f);
-    stage = std::move(tried);
-    gaps = std::move(tried_gaps);
+    }
+    if (!kept) break;
   }
+  return count_gaps(gaps);
 }
 
 }  // namespace
@@ -498,9 +522,11 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   d.timings.segmentation = seconds_since(t0);
 
   // --- 4. parts and assembly order ---
-  // The candidate ranked first is made into parts; when they have no assembly order even after
-  // their ways are cleared, the next competing candidates are tried in turn, and the first
-  // whose parts have one is kept (else the first).
+  // The candidate ranked first is made into parts (ways cleared, gaps filled). When they have no
+  // assembly order, or lines that meet a part twice are left, the next candidates are made in
+  // turn: the competing ones while no assembly order is found, and up to kMadeCandidates in all
+  // while gap lines are left. The best is kept: an assembly order first, then the fewest gap
+  // lines, then the fewest parts. (Bimba: the first leaves 408 gap lines, the third 9.)
   t0 = Clock::now();
   report("parts", 0.0);
   std::size_t competing = 0;
@@ -511,16 +537,52 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   const PartsContext context{
       solid,    d.tets, region_directions,
       d.access, opts,   std::cbrt(tets_volume / std::max<double>(1.0, num_tets))};
-  std::size_t chosen = ranked.front();
-  AssembledParts stage = assemble_parts(context, repaired[chosen]);
-  for (std::size_t k = 1; k < competing && !stage.parts.assembly.found; ++k) {
-    AssembledParts tried = assemble_parts(context, repaired[ranked[k]]);
-    if (tried.parts.assembly.found) {
-      stage = std::move(tried);
-      chosen = ranked[k];
+  struct Made {
+    AssembledParts stage;
+    std::size_t chosen = 0;
+    std::int32_t gap_lines = 0;
+    auto key() const {
+      return std::make_tuple(!stage.parts.assembly.found, gap_lines, stage.parts.parts.size());
     }
+  };
+  double least_share = INFINITY;
+  for (const RepairedCandidate& r : repaired)
+    least_share = std::min(least_share, r.repair.worst_share);
+  std::optional<Made> best;
+  std::size_t kept = 0;  // in d.made_candidates
+  for (std::size_t k = 0; k < ranked.size(); ++k) {
+    const RepairedCandidate& r = repaired[ranked[k]];
+    const bool found = best && best->stage.parts.assembly.found;
+    const bool for_assembly = k < competing && !found;
+    if (best) {
+      if (found && best->gap_lines == 0) break;
+      const bool for_gaps = d.made_candidates.size() < kMadeCandidates &&
+                            r.repair.worst_share <= kGapCandidateShare * least_share;
+      if (!for_assembly && !for_gaps) continue;
+    }
+    Made made{{context.make(r.label, r.region)}, ranked[k]};
+    MadeCandidate m;
+    m.restart = candidates[r.index].restart;
+    // Tried for its gaps only, it is dropped when it starts with more than the best has left.
+    if (best && !for_assembly)
+      made.gap_lines =
+          count_gaps(dhf_gaps(made.stage.parts.parts, kGapLines, opts.access.epsilon_mm));
+    const bool drop = best && !for_assembly && made.gap_lines > best->gap_lines;
+    if (!drop) {
+      clear_ways(context, r.region, made.stage);
+      made.gap_lines = fill_gap_rounds(context, r.region, made.stage);
+    }
+    m.parts = static_cast<std::int32_t>(made.stage.parts.parts.size());
+    m.assembly_found = made.stage.parts.assembly.found;
+    m.gap_lines = made.gap_lines;
+    m.dropped = drop;
+    d.made_candidates.push_back(m);
+    if (!drop && (!best || made.key() < best->key()))
+      best = std::move(made), kept = d.made_candidates.size() - 1;
   }
-  fill_gap_rounds(context, repaired[chosen].region, stage);
+  d.made_candidates[kept].kept = true;
+  AssembledParts stage = std::move(best->stage);
+  const std::size_t chosen = best->chosen;
   d.sandwich = std::move(repaired[chosen].repair);
   const LabelingCandidate& candidate = candidates[repaired[chosen].index];
   d.labeling.best_restart = candidate.restart;

@@ -195,6 +195,15 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                         {"gap_lines_before", f.gap_lines_before},
                         {"gap_lines_after", f.gap_lines_after}});
   j["dhf_repair"] = fillings;
+  ordered_json made = ordered_json::array();
+  for (const MadeCandidate& m : d.made_candidates)
+    made.push_back({{"restart", m.restart},
+                    {"parts", m.parts},
+                    {"assembly_found", m.assembly_found},
+                    {"gap_lines", m.gap_lines},
+                    {"dropped", m.dropped},
+                    {"kept", m.kept}});
+  j["candidates_made"] = made;
   j["manifold_repair"] = {{"moved_tets", d.manifold.moved_tets},
                           {"moved_volume_mm3", d.manifold.moved_volume_mm3},
                           {"nonmanifold_vertices", d.manifold.nonmanifold_vertices}};
