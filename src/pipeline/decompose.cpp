@@ -539,7 +539,7 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
       d.access, opts,   std::cbrt(tets_volume / std::max<double>(1.0, num_tets))};
   struct Made {
     AssembledParts stage;
-    std::size_t chosen = 0;
+    std::size_t repaired_index = 0;  // in `repaired`
     std::int32_t gap_lines = 0;
     auto key() const {
       return std::make_tuple(!stage.parts.assembly.found, gap_lines, stage.parts.parts.size());
@@ -582,7 +582,7 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   }
   d.made_candidates[kept].kept = true;
   AssembledParts stage = std::move(best->stage);
-  const std::size_t chosen = best->chosen;
+  const std::size_t chosen = best->repaired_index;
   d.sandwich = std::move(repaired[chosen].repair);
   const LabelingCandidate& candidate = candidates[repaired[chosen].index];
   d.labeling.best_restart = candidate.restart;
