@@ -506,8 +506,11 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   // The candidate ranked first is made into parts (ways cleared, gaps filled). When they have no
   // assembly order, or lines that meet a part twice are left, the next candidates are made in
   // turn: the competing ones while no assembly order is found, and up to kMadeCandidates in all
-  // while gap lines are left. The best is kept: an assembly order first, then the fewest gap
-  // lines, then the fewest parts. (Bimba: the first leaves 411 gap lines, the third 9.)
+  // while gap lines are left, of those whose sandwich share is at most kGapCandidateShare times
+  // the least (one of these that starts with more gap lines than the best has left is dropped
+  // before its ways are cleared and its gaps filled). The best is kept: an assembly order first,
+  // then the fewest gap lines, then the fewest parts. (Bimba: the first leaves 411 gap lines, the
+  // third 9.)
   t0 = Clock::now();
   report("parts", 0.0);
   std::size_t competing = 0;
