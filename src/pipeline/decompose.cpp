@@ -265,8 +265,8 @@ struct AssembledParts {
 // When the parts have no assembly order, a blocked part takes the tets of other parts in its way
 // along +d or -d (clear_way()), the side with fewer blocked stretches first, and the parts are
 // made again; kept when fewer parts are left blocked, or the same ones with fewer stretches of
-// that way blocked.
-void clear_ways(const PartsContext& c, const std::vector<std::int32_t>& region,
+// that way blocked. Returns whether any way was cleared.
+bool clear_ways(const PartsContext& c, const std::vector<std::int32_t>& region,
                 AssembledParts& out) {
   PartsStage& stage = out.parts;
   for (int round = 0; round < kMaxWayClearings && !stage.assembly.found; ++round) {
@@ -314,6 +314,7 @@ void clear_ways(const PartsContext& c, const std::vector<std::int32_t>& region,
     }
     if (!cleared) break;
   }
+  return !out.clearings.empty();
 }
 
 std::int32_t count_gaps(const std::vector<std::vector<Obstruction>>& gaps) {
@@ -331,13 +332,12 @@ void add_points_along(const Vec3& a, const Vec3& b, double tet_size, std::vector
 // Where the finished parts are still not double height fields (the smoothed interfaces of a
 // part wrap around a neighbour's, which the tet-level repair cannot see), each part takes the
 // tets of its neighbours in its gaps (fill_gaps()) and the parts are made again; a round is kept
-// when it leaves fewer gap lines, no more parts and no more of them blocked. Returns the gap lines
-// left.
+// when it leaves fewer gap lines, no more parts and no more of them blocked. `gaps` are the
+// parts' dhf_gaps() as given; returns the gap lines left.
 std::int32_t fill_gap_rounds(const PartsContext& c, const std::vector<std::int32_t>& region,
+                             std::vector<std::vector<Obstruction>> gaps,
                              AssembledParts& assembled) {
   PartsStage& stage = assembled.parts;
-  std::vector<std::vector<Obstruction>> gaps =
-      dhf_gaps(stage.parts, kGapLines, c.opts.access.epsilon_mm);
   for (int round = 0; round < kMaxGapFills && count_gaps(gaps) > 0; ++round) {
     std::vector<std::int32_t> label = stage.label;
     std::vector<std::int32_t> moved;
@@ -545,17 +545,19 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
       if (!for_assembly && !for_gaps) continue;
     }
     Made made{{context.make(r.label, r.region)}, ranked[k]};
-    MadeCandidate m;
-    m.restart = candidates[r.index].restart;
+    auto gaps_of = [&] {
+      return dhf_gaps(made.stage.parts.parts, kGapLines, opts.access.epsilon_mm);
+    };
+    std::vector<std::vector<Obstruction>> gaps = gaps_of();
+    made.gap_lines = count_gaps(gaps);
     // Tried for its gaps only, it is dropped when it starts with more than the best has left.
-    if (best && !for_assembly)
-      made.gap_lines =
-          count_gaps(dhf_gaps(made.stage.parts.parts, kGapLines, opts.access.epsilon_mm));
     const bool drop = best && !for_assembly && made.gap_lines > best->gap_lines;
     if (!drop) {
-      clear_ways(context, r.region, made.stage);
-      made.gap_lines = fill_gap_rounds(context, r.region, made.stage);
+      if (clear_ways(context, r.region, made.stage)) gaps = gaps_of();
+      made.gap_lines = fill_gap_rounds(context, r.region, std::move(gaps), made.stage);
     }
+    MadeCandidate m;
+    m.restart = candidates[r.index].restart;
     m.parts = static_cast<std::int32_t>(made.stage.parts.parts.size());
     m.assembly_found = made.stage.parts.assembly.found;
     m.gap_lines = made.gap_lines;
