@@ -140,6 +140,11 @@ TEST(Cli, CubeGivesOnePartAndTheContract) {
   EXPECT_FALSE(fs::exists(dir + "/out/parts/part_001.stl"));
   const TriMesh part = load_solid(dir + "/out/parts/part_000.stl").mesh;
   EXPECT_NEAR(signed_volume(part), 1000.0, 10.0);
+  // A cube is accessible everywhere along any axis: its one part holds no tet its direction
+  // does not reach.
+  std::stringstream json;
+  json << std::ifstream(dir + "/out/decomposition.json").rdbuf();
+  EXPECT_NE(json.str().find("\"inaccessible_tets\": 0,"), std::string::npos) << json.str();
   // Molds are built by default, and the checker accepts them.
   EXPECT_TRUE(fs::exists(dir + "/out/molds/part_000_up.stl"));
   EXPECT_TRUE(fs::exists(dir + "/out/molds/part_000_down.stl"));
