@@ -5,6 +5,7 @@
 #include <oneapi/tbb/global_control.h>
 
 #include <algorithm>
+#include <numeric>
 #include <set>
 #include <string>
 #include <tuple>
@@ -55,6 +56,9 @@ void expect_valid_decomposition(const TriMesh& input, const Decomposition& d,
     }
   for (std::size_t t = 0; t < tet_part.size(); ++t) ASSERT_GE(tet_part[t], 0) << "tet " << t;
   EXPECT_LE(inaccessible, d.sandwich.forced_tets);
+  ASSERT_EQ(d.inaccessible_tets.size(), d.parts.size());
+  EXPECT_EQ(std::accumulate(d.inaccessible_tets.begin(), d.inaccessible_tets.end(), 0),
+            inaccessible);
 
   // Parts are closed, manifold, outward; their volumes add up.
   double parts_volume = 0.0;

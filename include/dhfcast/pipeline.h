@@ -94,6 +94,10 @@ struct Decomposition {
   ManifoldRepair manifold;  // tets moved so that no part touches itself (label level)
   SolidCut solid_cut;       // parts cut from the exact input solid (empty when not asked)
   std::vector<Part> parts;
+  // Per part: its tets its direction is not accessible for (tiny pieces the sandwich repair
+  // forced on it), less those of slivers the cut dropped (outside the input: nothing of them is
+  // cast); 0 for parts of inaccessible regions.
+  std::vector<std::int32_t> inaccessible_tets;
   // Normal angles across each interface before and after smoothing, and over the outer surface
   // at the same resolution.
   std::vector<InterfaceSmoothness> raw_smoothness, smoothness;

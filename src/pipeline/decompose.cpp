@@ -582,6 +582,15 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   d.smoothness = std::move(stage.parts.smoothness);
   d.outer_smoothness = stage.parts.outer_smoothness;
   d.solid_cut = std::move(stage.parts.solid_cut);
+  for (const Part& p : d.parts) {
+    std::int32_t inaccessible = 0;
+    if (p.region == 0)
+      for (std::int32_t t : p.tets)
+        inaccessible += !d.access.feasible.get(t, p.direction_index) &&
+                        !std::binary_search(d.solid_cut.dropped_tets.begin(),
+                                            d.solid_cut.dropped_tets.end(), t);
+    d.inaccessible_tets.push_back(inaccessible);
+  }
   d.assembly = std::move(stage.parts.assembly);
   d.assembly_tolerance_mm = stage.parts.assembly_tolerance_mm;
   d.way_clearings = std::move(stage.clearings);

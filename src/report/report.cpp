@@ -2,7 +2,6 @@
 
 #include <unistd.h>
 
-#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -131,21 +130,13 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
 
   ordered_json parts = ordered_json::array();
   for (const Part& p : d.parts) {
-    // Tets its direction is not accessible for (tiny pieces the sandwich repair forced on it),
-    // less those of slivers the cut dropped (outside the input, nothing of them is cast).
-    std::int32_t inaccessible = 0;
-    if (p.region == 0 && d.access.feasible.num_tets() > 0)
-      for (std::int32_t t : p.tets)
-        inaccessible += !d.access.feasible.get(t, p.direction_index) &&
-                        !std::binary_search(d.solid_cut.dropped_tets.begin(),
-                                            d.solid_cut.dropped_tets.end(), t);
     ordered_json jp = {{"id", p.id},
                        {"mesh", part_file(p.id)},
                        {"direction", vec(p.direction)},
                        {"removal_direction", vec(d.assembly.removal.at(p.id))},
                        {"volume_mm3", p.volume_mm3},
                        {"tets", p.tets.size()},
-                       {"inaccessible_tets", inaccessible},
+                       {"inaccessible_tets", d.inaccessible_tets.at(p.id)},
                        {"region", p.region},
                        {"blocked_by", d.assembly.blocks.at(p.id)}};
     if (static_cast<std::size_t>(p.id) < d.solid_cut.part_cut.size())
