@@ -1469,18 +1469,25 @@ TEST(ClearWay, MovesThatWouldSplitAPartOrThatItsDirectionForbidsAreRefused) {
 // C and the whole last column. Lines along z through the C's mouth meet P, Q, P.
 int c_around_a_tongue(const Cell& c) { return c[0] <= 2 && (c[2] != 1 || c[0] == 0) ? 0 : 1; }
 
+constexpr std::int64_t kGapLines = 900;  // over a part's footprint
+
+// Part p's gaps on kGapLines lines, which must cross two thirds of its footprint.
+std::vector<DhfGap> gaps_over_two_thirds(const std::vector<Part>& parts, std::int32_t p) {
+  const std::vector<DhfGap> gaps = dhf_gaps(parts, kGapLines, kTolerance_mm)[p];
+  EXPECT_GT(gaps.size(), 0.6 * kGapLines);
+  EXPECT_LT(gaps.size(), 0.72 * kGapLines);
+  return gaps;
+}
+
 TEST(DhfGaps, LinesThroughAPartsMouthCrossTheNeighbourBetweenItsJaws) {
   const Grid g = make_grid(4, 3, 3, 10.0);
   const std::vector<std::vector<Vec3>> dirs{{kZ, kX}};
   const auto parts = extract_parts(g.mesh, per_cell(g, c_around_a_tongue), zeros(g), dirs);
   ASSERT_EQ(parts.size(), 2u);
   const std::int32_t p = parts[0].direction_index == 0 ? 0 : 1, q = 1 - p;
-  constexpr std::int64_t kLines = 900;  // over P's 30 x 30 mm footprint
-  const std::vector<Obstruction> gaps = dhf_gaps(parts, kLines, kTolerance_mm)[p];
-  // The mouth is two thirds of the footprint.
-  EXPECT_GT(gaps.size(), 0.6 * kLines);
-  EXPECT_LT(gaps.size(), 0.72 * kLines);
-  for (const Obstruction& o : gaps) {
+  // The mouth is two thirds of P's footprint.
+  const std::vector<DhfGap> gaps = gaps_over_two_thirds(parts, p);
+  for (const DhfGap& o : gaps) {
     EXPECT_EQ(o.part, q);
     EXPECT_NEAR(o.from.z(), 10.0, 1e-6);
     EXPECT_NEAR(o.to.z(), 20.0, 1e-6);
@@ -1488,8 +1495,8 @@ TEST(DhfGaps, LinesThroughAPartsMouthCrossTheNeighbourBetweenItsJaws) {
     EXPECT_LT(o.from.x(), 30.0);
   }
   // Along x, Q is one interval on every line; a gap no deeper than epsilon is none.
-  EXPECT_TRUE(dhf_gaps(parts, kLines, kTolerance_mm)[q].empty());
-  EXPECT_TRUE(dhf_gaps(parts, kLines, 5.0)[p].empty());
+  EXPECT_TRUE(dhf_gaps(parts, kGapLines, kTolerance_mm)[q].empty());
+  EXPECT_TRUE(dhf_gaps(parts, kGapLines, 5.0)[p].empty());
 }
 
 TEST(FillGaps, TheTongueBetweenThePartsJawsJoinsIt) {
@@ -1499,8 +1506,8 @@ TEST(FillGaps, TheTongueBetweenThePartsJawsJoinsIt) {
   const auto parts = extract_parts(g.mesh, label, zeros(g), dirs);
   const std::int32_t p = parts[0].direction_index == 0 ? 0 : 1;
   std::vector<Vec3> points;  // along each gap, 1 mm apart, as the pipeline seeds them
-  const std::vector<std::vector<Obstruction>> gaps = dhf_gaps(parts, 100, kTolerance_mm);
-  for (const Obstruction& o : gaps[p])
+  const std::vector<std::vector<DhfGap>> gaps = dhf_gaps(parts, 100, kTolerance_mm);
+  for (const DhfGap& o : gaps[p])
     for (int i = 0; i <= 10; ++i) points.push_back(o.from + 0.1 * i * (o.to - o.from));
   const std::vector<std::int32_t> moved =
       fill_gaps(g.mesh, label, zeros(g), dirs, kAllowAll, parts[p].tets.front(), points);
@@ -1523,6 +1530,71 @@ TEST(FillGaps, TheTongueBetweenThePartsJawsJoinsIt) {
       fill_gaps(g.mesh, kept, zeros(g), dirs, tongue_forbidden, parts[p].tets.front(), points)
           .empty());
   EXPECT_EQ(kept, per_cell(g, c_around_a_tongue));
+}
+
+// A 30 x 10 x 40 mm column of 10 mm cells with a slot cut into it from +x at height 20..30 (the
+// cells at x >= 10 there are missing): part Q (sideways) is the bottom layer; part P (up) is the
+// rest, so on lines along up at x > 10, P has a skin (z 10..20) on Q with air over it and then P
+// again.
+struct SkinOverAir {
+  TetMesh mesh;
+  std::vector<std::int32_t> label;  // P: 0, Q: 1
+  std::vector<Cell> cell;
+};
+
+SkinOverAir skin_over_air() {
+  const std::vector<double> xs{0, 10, 20, 30}, ys{0, 10}, zs{0, 10, 20, 30, 40};
+  SkinOverAir s;
+  s.mesh = test::grid_tets(xs, ys, zs, [](int i, int, int k) { return k != 2 || i == 0; });
+  for (std::int32_t t = 0; t < static_cast<std::int32_t>(s.mesh.tets.size()); ++t) {
+    Vec3 centre = Vec3::Zero();
+    for (std::int32_t v : s.mesh.tets[t]) centre += 0.25 * s.mesh.vertices[v];
+    const Cell c{static_cast<int>(centre.x() / 10), static_cast<int>(centre.y() / 10),
+                 static_cast<int>(centre.z() / 10)};
+    s.cell.push_back(c);
+    s.label.push_back(c[2] == 0 ? 1 : 0);
+  }
+  return s;
+}
+
+TEST(DhfGaps, ASkinOverAirSaysWhichPartItLiesOn) {
+  const SkinOverAir s = skin_over_air();
+  const std::vector<std::vector<Vec3>> dirs{{kZ, kX}};
+  const auto parts = extract_parts(s.mesh, s.label, zeros_like(s.mesh), dirs);
+  ASSERT_EQ(parts.size(), 2u);
+  const std::int32_t p = parts[0].direction_index == 0 ? 0 : 1, q = 1 - p;
+  // The slot is two thirds of P's footprint.
+  const std::vector<DhfGap> gaps = gaps_over_two_thirds(parts, p);
+  for (const DhfGap& g : gaps) {
+    EXPECT_EQ(g.part, -1);  // outside the solid
+    EXPECT_EQ(g.below, q);
+    EXPECT_NEAR(g.interval_from.z(), 10.0, 1e-6);
+    EXPECT_NEAR(g.from.z(), 20.0, 1e-6);
+    EXPECT_NEAR(g.to.z(), 30.0, 1e-6);
+    EXPECT_GT(g.from.x(), 10.0);
+  }
+}
+
+TEST(FillGaps, ThePartUnderASkinOverAirTakesIt) {
+  SkinOverAir s = skin_over_air();
+  const std::vector<std::vector<Vec3>> dirs{{kZ, kX}};
+  const auto parts = extract_parts(s.mesh, s.label, zeros_like(s.mesh), dirs);
+  const std::int32_t p = parts[0].direction_index == 0 ? 0 : 1, q = 1 - p;
+  std::vector<Vec3> points;  // along each skin, as the pipeline seeds them
+  const std::vector<std::vector<DhfGap>> gaps = dhf_gaps(parts, 100, kTolerance_mm);
+  ASSERT_FALSE(gaps[p].empty());
+  for (const DhfGap& g : gaps[p])
+    for (int i = 0; i <= 4; ++i)
+      points.push_back(g.interval_from + 0.25 * i * (g.from - g.interval_from));
+  const std::vector<std::int32_t> moved = fill_gaps(s.mesh, s.label, zeros_like(s.mesh), dirs,
+                                                    kAllowAll, parts[q].tets.front(), points);
+  std::vector<std::int32_t> expected;  // the skin: the cells under the slot
+  for (std::int32_t t = 0; t < static_cast<std::int32_t>(s.label.size()); ++t)
+    if (s.cell[t][2] == 1 && s.cell[t][0] >= 1) expected.push_back(t);
+  EXPECT_EQ(moved, expected);
+  const auto filled = extract_parts(s.mesh, s.label, zeros_like(s.mesh), dirs);
+  ASSERT_EQ(filled.size(), 2u);
+  for (std::int32_t k = 0; k < 2; ++k) EXPECT_TRUE(dhf_gaps(filled, 900, kTolerance_mm)[k].empty());
 }
 
 }  // namespace

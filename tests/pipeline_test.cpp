@@ -374,6 +374,26 @@ TEST(Pipeline, DoubletorusKeepsACandidateWhosePartsComeApart) {
   EXPECT_EQ(dhf_figures(report).violating_lines, 0);
 }
 
+// Elephant at the paper's tet count: no candidate's parts come apart, whichever of their +-d ways
+// is cleared; the one kept clears a way over the sphere, after which check confirms the order.
+TEST(Pipeline, ElephantClearsAWayOverTheSphereToComeApart) {
+  const std::string path = test::extra_model("elephant.stl");
+  if (path.empty()) GTEST_SKIP() << "extended models absent (set DHFCAST_MODELS_DIR)";
+  const auto [input, opts, d] = decompose_model(path, 50589);
+  for (const MadeCandidate& m : d.made_candidates) {
+    if (!m.kept) EXPECT_FALSE(m.assembly_found);
+  }
+  ASSERT_TRUE(d.assembly.found) << d.assembly.message;
+  bool over_sphere = false;
+  for (const WayClearing& c : d.way_clearings) {
+    const Vec3 own = d.directions[c.direction_index];
+    over_sphere = over_sphere || std::abs(c.direction.dot(own)) < 1.0 - 1e-9;
+  }
+  EXPECT_TRUE(over_sphere);
+  EXPECT_EQ(d.way_clearings.back().blocked_after, 0);
+  expect_checks_pass(check_written(input, opts, d, "elephant-paper"), {"assembly"});
+}
+
 // Bimba at the paper's tet count: the parts of the candidate ranked first (fewest sandwiched tets)
 // leave lines that meet a part twice, across air: tets its direction does not allow, that no
 // neighbour could take. Other candidates are made too, and one whose parts are double height

@@ -311,12 +311,21 @@ struct Obstruction {
 std::vector<Obstruction> obstructions(const std::vector<Part>& parts, std::int32_t p,
                                       const Vec3& dir, double tolerance_mm);
 
+// A stretch of a line along a part's direction between two of the part's intervals.
+struct DhfGap {
+  std::int32_t part = -1;  // the first other part it enters; -1: none (it is outside the solid)
+  Vec3 from, to;           // where the line leaves the part and enters it again
+  // The part's interval that ends at `from`: where it begins, and the part the line was in just
+  // before it (-1: none, the line came from outside the solid).
+  Vec3 interval_from;
+  std::int32_t below = -1;
+};
+
 // Where each part is not a double height field along its direction: on about `lines` lines along
 // d, a square grid over the part's footprint's bounding rectangle, every stretch between two of
 // its intervals whose deepest point is farther than epsilon_mm from its boundary (`dhfcast
-// check`'s rule), bottom to top; per part. Obstruction::part is the first other part the stretch
-// enters, -1 when none (the gap is outside the solid). Deterministic.
-std::vector<std::vector<Obstruction>> dhf_gaps(const std::vector<Part>& parts, std::int64_t lines,
-                                               double epsilon_mm);
+// check`'s rule), bottom to top; per part. Deterministic.
+std::vector<std::vector<DhfGap>> dhf_gaps(const std::vector<Part>& parts, std::int64_t lines,
+                                          double epsilon_mm);
 
 }  // namespace dhfcast

@@ -53,14 +53,14 @@ struct InaccessibleRegion {
 // Tets given to a part blocked on its way out (clear_way()), when no assembly order existed.
 struct WayClearing {
   std::int32_t direction_index = 0;  // of the part whose way was cleared
-  Vec3 direction;                    // the way: that part's +d or -d
+  Vec3 direction;                    // the way: that part's +d or -d, or one over the sphere
   std::int32_t tets = 0;
   double volume_mm3 = 0.0;
   std::int32_t blocked_before = 0, blocked_after = 0;  // parts left blocked
 };
 
-// One round of tets given to parts in their gaps along d (fill_gaps()), where the finished parts
-// were not double height fields.
+// One move kept of tets given to a part in its gaps along d, or to the part under a skin of
+// another over air (fill_gaps()), where the finished parts were not double height fields.
 struct GapFilling {
   std::int32_t tets = 0;
   double volume_mm3 = 0.0;

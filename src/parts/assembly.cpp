@@ -472,13 +472,19 @@ namespace {
 // The gaps of part p on the line origin + t * dir, bottom to top (see dhf_gaps()).
 void line_gaps(const PartScene& scene, std::int32_t p, const Vec3& origin, const Vec3& dir,
                double epsilon_mm, std::vector<std::uint64_t>& hits,
-               std::vector<Crossing>& crossings, std::vector<Obstruction>& out) {
+               std::vector<Crossing>& crossings, std::vector<DhfGap>& out) {
   scene.crossings(origin, dir, hits, crossings);
   // The part's intervals along the line; repeated hits on a shared edge count once.
   bool inside = false;
   double left = -INFINITY;  // where the line last left the part
+  double began = -INFINITY;              // where the line last entered it
+  std::int32_t below = -1;               // the part the line was in just before that
+  const Crossing* last_other = nullptr;  // the last crossing of another part's boundary
   for (const Crossing& c : crossings) {
-    if (c.part != p) continue;
+    if (c.part != p) {
+      last_other = &c;
+      continue;
+    }
     if (!c.exits && !inside) {
       inside = true;
       if (left > -INFINITY && c.t_mm - left > 2 * epsilon_mm &&
@@ -489,8 +495,18 @@ void line_gaps(const PartScene& scene, std::int32_t p, const Vec3& origin, const
             met = o.part;
             break;
           }
-        out.push_back({met, origin + left * dir, origin + c.t_mm * dir});
+        out.push_back(
+            {met, origin + left * dir, origin + c.t_mm * dir, origin + began * dir, below});
       }
+      // The part whose boundary the line leaves by where it enters (a shared face's hits come
+      // in either order), else the one it is inside.
+      began = c.t_mm;
+      below = last_other && !last_other->exits ? last_other->part : -1;
+      for (const Crossing& o : crossings)
+        if (o.part != p && o.exits && std::abs(o.t_mm - c.t_mm) <= epsilon_mm) {
+          below = o.part;
+          break;
+        }
     } else if (c.exits && inside) {
       inside = false;
       left = c.t_mm;
@@ -500,12 +516,12 @@ void line_gaps(const PartScene& scene, std::int32_t p, const Vec3& origin, const
 
 }  // namespace
 
-std::vector<std::vector<Obstruction>> dhf_gaps(const std::vector<Part>& parts, std::int64_t lines,
-                                               double epsilon_mm) {
+std::vector<std::vector<DhfGap>> dhf_gaps(const std::vector<Part>& parts, std::int64_t lines,
+                                          double epsilon_mm) {
   if (lines < 1 || lines > 100'000'000 || !(epsilon_mm >= 0.0))
     throw Error(ErrorCode::InvalidOptions, "dhf_gaps: lines must be in 1..1e8, epsilon >= 0");
   const PartScene scene(parts);
-  std::vector<std::vector<Obstruction>> gaps(parts.size());
+  std::vector<std::vector<DhfGap>> gaps(parts.size());
   for (std::int32_t p = 0; p < static_cast<std::int32_t>(parts.size()); ++p) {
     if (parts[p].mesh.vertices.empty()) continue;
     const Vec3 d = parts[p].direction.normalized(), u = d.unitOrthogonal(), v = d.cross(u);
@@ -526,7 +542,7 @@ std::vector<std::vector<Obstruction>> dhf_gaps(const std::vector<Part>& parts, s
              (box.min.y() + (static_cast<double>(k / nu) + 0.5) * spacing_mm) * v +
              (box.min.z() - 1.0) * d;
     };
-    std::vector<std::vector<Obstruction>> per_line(static_cast<std::size_t>(nu * nv));
+    std::vector<std::vector<DhfGap>> per_line(static_cast<std::size_t>(nu * nv));
     tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nu * nv, 1024),
                       [&](const tbb::blocked_range<std::int64_t>& range) {
                         std::vector<std::uint64_t> hits;
@@ -535,7 +551,7 @@ std::vector<std::vector<Obstruction>> dhf_gaps(const std::vector<Part>& parts, s
                           line_gaps(scene, p, origin(k), d, epsilon_mm, hits, crossings,
                                     per_line[k]);
                       });
-    for (const std::vector<Obstruction>& line : per_line)
+    for (const std::vector<DhfGap>& line : per_line)
       gaps[p].insert(gaps[p].end(), line.begin(), line.end());
   }
   return gaps;
