@@ -564,7 +564,7 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   // the least (one of these that starts with more gap lines than the best has left is dropped
   // before its ways are cleared and its gaps filled). The best is kept: an assembly order first,
   // then the fewest gap lines, then the fewest parts. (Bimba: the first leaves 411 gap lines, the
-  // third 9.) Ways over the sphere are cleared only when no candidate has an order: they are tried
+  // third 13.) Ways over the sphere are cleared only when no candidate has an order: they are tried
   // on the one kept (elephant), as clearing them leaves more gap lines than another candidate's
   // order along +-d does (doubletorus: 80 against 0).
   t0 = Clock::now();
