@@ -576,6 +576,84 @@ Parts make_state(const TetMesh& tets, const FaceNormals& normals,
   return s;
 }
 
+// Settles the parts of `label` largest first and smallest first (settle_all()), keeps the
+// labeling whose worst part has the smallest share of sandwiched volume (then the fewest parts;
+// `label` as given, counted in `best`, competes too), and polishes it (polish()).
+void settle_and_polish(Parts& s, std::vector<std::int32_t>& label, const SandwichOptions& opts,
+                       Sandwiches& best, SandwichRepair& repair) {
+  const std::int32_t n = static_cast<std::int32_t>(label.size());
+  const std::int32_t num_parts = s.take_parts(label, false);
+  std::vector<double> part_volume(num_parts, 0.0);
+  for (std::int32_t t = 0; t < n; ++t) {
+    const std::int32_t p = s.owner[t];
+    part_volume[p] += s.volume[t];
+  }
+  // The parts that settle first keep their shape and later ones give way, so which order
+  // wins depends on the shape: largest first, and smallest first, are both tried, and the
+  // labeling whose worst part has the smallest share of sandwiched volume is kept (then the
+  // one with fewer parts; the labeling given competes too). Components are numbered by their
+  // smallest tet, so ties in volume go to the part that comes first.
+  std::vector<std::int32_t> order(num_parts);
+  for (std::int32_t p = 0; p < num_parts; ++p) order[p] = p;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::int32_t a, std::int32_t b) { return part_volume[a] > part_volume[b]; });
+  for (int pass = 0; pass < 2; ++pass) {
+    SandwichRepair tried;
+    const std::vector<std::int32_t> result = settle_all(s, order, opts, tried);
+    const Sandwiches left = count_sandwiched(s, result);
+    if (std::make_pair(left.worst_share, left.parts) <
+        std::make_pair(best.worst_share, best.parts)) {
+      best = left;
+      repair.order = pass == 0 ? "largest first" : "smallest first";
+      label = result;
+      repair.rounds = tried.rounds;
+      repair.merged_pieces = tried.merged_pieces;
+      repair.merged_tets = tried.merged_tets;
+    }
+    std::reverse(order.begin(), order.end());
+  }
+  // Only the labeling kept is polished, and the polish is kept only where its worst part does
+  // not get a larger share of sandwiched volume: polishing every labeling before choosing
+  // chose, on armadillo, one the checker found worse.
+  std::vector<std::int32_t> polished = label;
+  polish(s, polished, opts.max_rounds);
+  const Sandwiches left = count_sandwiched(s, polished);
+  if (polished != label && left.worst_share <= best.worst_share && left.parts <= best.parts) {
+    best = left;
+    label = std::move(polished);
+  }
+}
+
+// Gives each part whose direction does not allow all of its volume the direction of its region
+// that allows the most, when that leaves less than half as much not allowed (a part keeps the
+// segmentation's choice for a small gain). Returns how many parts changed direction.
+std::int32_t redirect_parts(Parts& s, std::vector<std::int32_t>& label) {
+  const std::int32_t num_parts = s.take_parts(label, true);
+  std::vector<std::vector<std::int32_t>> members(num_parts);
+  for (std::int32_t t = 0; t < static_cast<std::int32_t>(label.size()); ++t)
+    members[s.owner[t]].push_back(t);
+  std::int32_t changed = 0;
+  for (std::int32_t p = 0; p < num_parts; ++p) {
+    const std::int32_t r = s.region_of[p];
+    auto not_allowed = [&](std::int32_t l) {
+      double v = 0.0;
+      for (std::int32_t t : members[p])
+        if (!s.allows(t, r, l)) v += s.volume[t];
+      return v;
+    };
+    const double own = not_allowed(s.label_of[p]);
+    if (own == 0.0) continue;
+    std::vector<double> left(s.directions[r].size());
+    tbb::parallel_for(std::size_t{0}, left.size(),
+                      [&](std::size_t l) { left[l] = not_allowed(static_cast<std::int32_t>(l)); });
+    const auto best = std::min_element(left.begin(), left.end());
+    if (*best >= 0.5 * own) continue;
+    for (std::int32_t t : members[p]) label[t] = static_cast<std::int32_t>(best - left.begin());
+    ++changed;
+  }
+  return changed;
+}
+
 void check_labeling(const TetMesh& tets, const std::vector<std::int32_t>& label,
                     const std::vector<std::int32_t>& region,
                     const std::vector<std::vector<Vec3>>& directions) {
@@ -606,46 +684,14 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
   SandwichRepair repair;
   Sandwiches best = count_sandwiched(s, label);
   if (opts.max_rounds > 0) {
-    const std::int32_t num_parts = s.take_parts(label, false);
-    std::vector<double> part_volume(num_parts, 0.0);
-    for (std::int32_t t = 0; t < n; ++t) {
-      const std::int32_t p = s.owner[t];
-      part_volume[p] += s.volume[t];
-    }
-    // The parts that settle first keep their shape and later ones give way, so which order
-    // wins depends on the shape: largest first, and smallest first, are both tried, and the
-    // labeling whose worst part has the smallest share of sandwiched volume is kept (then the
-    // one with fewer parts; the segmentation's own labeling competes too). Components are
-    // numbered by their smallest tet, so ties in volume go to the part that comes first.
-    std::vector<std::int32_t> order(num_parts);
-    for (std::int32_t p = 0; p < num_parts; ++p) order[p] = p;
-    std::stable_sort(order.begin(), order.end(), [&](std::int32_t a, std::int32_t b) {
-      return part_volume[a] > part_volume[b];
-    });
-    for (int pass = 0; pass < 2; ++pass) {
-      SandwichRepair tried;
-      const std::vector<std::int32_t> result = settle_all(s, order, opts, tried);
-      const Sandwiches left = count_sandwiched(s, result);
-      if (std::make_pair(left.worst_share, left.parts) <
-          std::make_pair(best.worst_share, best.parts)) {
-        best = left;
-        repair.order = pass == 0 ? "largest first" : "smallest first";
-        label = result;
-        repair.rounds = tried.rounds;
-        repair.merged_pieces = tried.merged_pieces;
-        repair.merged_tets = tried.merged_tets;
-      }
-      std::reverse(order.begin(), order.end());
-    }
-    // Only the labeling kept is polished, and the polish is kept only where its worst part does
-    // not get a larger share of sandwiched volume: polishing every labeling before choosing
-    // chose, on armadillo, one the checker found worse.
-    std::vector<std::int32_t> polished = label;
-    polish(s, polished, opts.max_rounds);
-    const Sandwiches left = count_sandwiched(s, polished);
-    if (polished != label && left.worst_share <= best.worst_share && left.parts <= best.parts) {
-      best = left;
-      label = std::move(polished);
+    settle_and_polish(s, label, opts, best, repair);
+    // Pieces forced into a part can leave it with volume its direction does not allow, which
+    // another direction does: such a part takes the direction that allows most of its volume,
+    // and the parts settle again along the directions now used.
+    repair.redirected_parts = redirect_parts(s, label);
+    if (repair.redirected_parts > 0) {
+      best = count_sandwiched(s, label);
+      settle_and_polish(s, label, opts, best, repair);
     }
   }
   repair.stuck_tets = best.tets;

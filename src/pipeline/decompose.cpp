@@ -30,7 +30,7 @@ constexpr int kMaxGapFills = 4;
 constexpr std::int64_t kGapLines = 200'000;
 // While gap lines are left, candidate labelings made into parts at least, among those whose
 // sandwich share at the tets is at most kGapCandidateShare times the least: elephant's others,
-// at 10 times and more, leave 5 to 7 times its gap lines (see decompose()).
+// at 10 times and more, leave 20 to 30 times its gap lines (see decompose()).
 constexpr std::size_t kMadeCandidates = 3;
 constexpr double kGapCandidateShare = 4.0;
 
