@@ -189,6 +189,17 @@ TEST(Molds, TiltedSphereHalvesAreClosedSolids) {
   EXPECT_TRUE(item.passed) << item.summary;
 }
 
+// The sprue and the vents leave the block side by side, far enough apart not to merge.
+void expect_channels_apart(const Mold& mold, const Vec3& d) {
+  std::vector<MoldChannel> all = mold.sprues;
+  all.insert(all.end(), mold.vents.begin(), mold.vents.end());
+  const Vec3 across = mold.gravity_up.cross(d).normalized();
+  for (std::size_t i = 0; i < all.size(); ++i)
+    for (std::size_t j = 0; j < i; ++j)
+      EXPECT_GT(std::abs((all[i].mouth - all[j].mouth).dot(across)),
+                0.5 * (all[i].diameter_mm + all[j].diameter_mm));
+}
+
 // A ring lying across d: its footprint has a hole, so the parting surface spans two loops; the
 // hole's rim traps no air.
 TEST(Molds, RingHasOneSprueAndReleases) {
@@ -198,7 +209,9 @@ TEST(Molds, RingHasOneSprueAndReleases) {
   const Part part = part_of(ring, Vec3::UnitZ());
   const Mold mold = build_mold(part, {});
   expect_valid_mold(mold, part.direction);
-  EXPECT_TRUE(mold.vents.empty());
+  // One trap (the sprue's); a vent still goes where the way up is clear, apart from the sprue.
+  ASSERT_EQ(mold.vents.size(), 1u);
+  expect_channels_apart(mold, part.direction);
   const CheckItem item = checked_molds(part, mold);
   EXPECT_TRUE(item.passed) << item.summary;
 }
@@ -228,10 +241,24 @@ TEST(Molds, EveryAirTrapGetsAVent) {
   const CheckItem item = checked_molds(part, mold);
   EXPECT_TRUE(item.passed) << item.summary;
 
-  // Chosen automatically, the pouring direction has the fewest traps: one.
+  // Chosen automatically, the pouring direction has the fewest traps: one, the sprue's. The
+  // vent goes at the highest point of the parting line whose way up the cavity leaves clear.
   const Mold automatic = build_mold(part, {});
   expect_valid_mold(automatic, part.direction);
-  EXPECT_TRUE(automatic.vents.empty());
+  ASSERT_EQ(automatic.vents.size(), 1u);
+  expect_channels_apart(automatic, part.direction);
+}
+
+// A sphere's parting line is its equator, and its top is the one air trap, for the sprue. The
+// way up from any point of the equator's upper half is clear, so the vent goes on it, as high as
+// it can beside the sprue.
+TEST(Molds, OneTrapStillGetsAVentBesideTheSprue) {
+  const Part sphere = part_of(make_sphere(Vec3(0, 0, 0), 15), Vec3::UnitZ());
+  const Mold mold = build_mold(sphere, {});
+  expect_valid_mold(mold, sphere.direction);
+  ASSERT_EQ(mold.vents.size(), 1u);
+  expect_channels_apart(mold, sphere.direction);
+  EXPECT_GT(mold.vents[0].mouth.dot(mold.gravity_up), 10.0);
 }
 
 // A 60 x 62 x 10 mm slab with a 2 mm lip, 4 x 3 mm across, over a slit `slit_mm` high; a wall

@@ -211,7 +211,8 @@ CheckItem check_molds(const CheckContext& c) {
   std::int64_t with_molds = 0, blocked = 0, unresolved = 0;
   double inside_mm = 0.0, worst_overlap = 0.0, worst_cover = 1.0, most_sliver = 0.0,
          most_served = 0.0;
-  std::int32_t min_sprues = std::numeric_limits<std::int32_t>::max(), min_keys = min_sprues;
+  std::int32_t min_sprues = std::numeric_limits<std::int32_t>::max(), min_keys = min_sprues,
+               min_vents = min_sprues;
   std::int64_t vents = 0;
   std::string first;
   for (std::size_t i = 0; i < c.parts.size(); ++i) {
@@ -321,6 +322,7 @@ CheckItem check_molds(const CheckContext& c) {
     min_sprues = std::min(min_sprues, part.sprues);
     min_keys = std::min(min_keys, part.keys);
     vents += part.vents;
+    min_vents = std::min(min_vents, part.vents);
     if ((part.sprues < 1 || part.keys < 3) && problem.empty())
       problem = format("the mold lists %d sprue%s and %d key%s (at least 1 and 3 needed)",
                        part.sprues, part.sprues == 1 ? "" : "s", part.keys,
@@ -334,26 +336,29 @@ CheckItem check_molds(const CheckContext& c) {
     return item;
   }
   item.passed = first.empty();
-  item.figures = {{"parts_with_molds", double(with_molds)},
-                  {"blocked_samples", double(blocked)},
-                  {"max_inside_mm", inside_mm},
-                  {"max_overlap_fraction", worst_overlap},
-                  {"min_surface_coverage", worst_cover},
-                  {"max_undercut_sliver_fraction", most_sliver},
-                  {"max_channel_served_fraction", most_served},
-                  {"min_sprues", min_sprues == std::numeric_limits<std::int32_t>::max() ? 0.0 : double(min_sprues)},
-                  {"min_keys", min_keys == std::numeric_limits<std::int32_t>::max() ? 0.0 : double(min_keys)},
-                  {"vents", double(vents)},
-                  {"unresolved_samples", double(unresolved)}};
+  item.figures = {
+      {"parts_with_molds", double(with_molds)},
+      {"blocked_samples", double(blocked)},
+      {"max_inside_mm", inside_mm},
+      {"max_overlap_fraction", worst_overlap},
+      {"min_surface_coverage", worst_cover},
+      {"max_undercut_sliver_fraction", most_sliver},
+      {"max_channel_served_fraction", most_served},
+      {"min_sprues",
+       min_sprues == std::numeric_limits<std::int32_t>::max() ? 0.0 : double(min_sprues)},
+      {"min_keys", min_keys == std::numeric_limits<std::int32_t>::max() ? 0.0 : double(min_keys)},
+      {"vents", double(vents)},
+      {"min_vents",
+       min_vents == std::numeric_limits<std::int32_t>::max() ? 0.0 : double(min_vents)},
+      {"unresolved_samples", double(unresolved)}};
   item.summary = item.passed
                      ? format(
                            "%lld part%s: halves release along +-d, overlap at most %.3f%%, surface "
                            "covered at least %.2f%% (undercut slivers at most %.2f%%, channels "
-                           "at most %.2f%%), sprues, %lld vents, >= %d keys",
+                           "at most %.2f%%), sprues, %lld vents (>= %d per mold), >= %d keys",
                            static_cast<long long>(with_molds), with_molds == 1 ? "" : "s",
                            100 * worst_overlap, 100 * worst_cover, 100 * most_sliver,
-                           100 * most_served,
-                           static_cast<long long>(vents), min_keys)
+                           100 * most_served, static_cast<long long>(vents), min_vents, min_keys)
                      : first;
   return item;
 }
