@@ -27,7 +27,7 @@ namespace {
 using namespace detail;
 
 constexpr int kGravityCandidates = 24;  // directions orthogonal to d tried as "up"
-// Cells along the block's longer side: enough for cells no wider than twice the undercut
+// Cells along the block's longer side: enough for cells no wider than 1.5 times the undercut
 // tolerance (a steep wall loses a band about a cell high between the halves' grid triangles; the
 // elephant's body at 160 cells left 1.4 % of its surface unmoulded), within these bounds.
 constexpr int kMinGridCells = 160, kMaxGridCells = 320;
