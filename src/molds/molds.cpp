@@ -476,14 +476,18 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
       best_extent = extent;
     }
   }
+  // The parting line's vertices, highest first (ties by index).
+  std::vector<std::int32_t> by_height;
+  for (const auto& e : split.parting_edges) by_height.insert(by_height.end(), e.begin(), e.end());
+  std::sort(by_height.begin(), by_height.end());
+  by_height.erase(std::unique(by_height.begin(), by_height.end()), by_height.end());
+  std::sort(by_height.begin(), by_height.end(), [&](std::int32_t a, std::int32_t b) {
+    const double ha = cavity.vertices[a].dot(up), hb = cavity.vertices[b].dot(up);
+    return ha != hb ? ha > hb : a < b;
+  });
   // No trap (the pouring direction with the fewest has none): the sprue still goes at the
   // parting line's highest point, where the last air leaves as the cavity fills.
-  if (traps.empty())
-    for (const auto& e : split.parting_edges)
-      for (std::int32_t v : e)
-        if (traps.empty() || cavity.vertices[v].dot(up) > cavity.vertices[traps[0]].dot(up) ||
-            (cavity.vertices[v].dot(up) == cavity.vertices[traps[0]].dot(up) && v < traps[0]))
-          traps.assign(1, v);
+  if (traps.empty() && !by_height.empty()) traps.assign(1, by_height.front());
   const Frame frame{up.cross(d).normalized(), up, d};
   mold.gravity_up = up;
 
@@ -571,12 +575,15 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
   TriMesh channels;
   std::vector<std::array<double, 2>> taken;  // (x, radius) of the channels kept
   const double y_exit = g.y(g.ny) + wall;    // past the block's edge
+  // Where a channel's axis starts, in the frame: a fraction of a cell across from its parting
+  // line vertex, so that it does not run along the part's edges or walls.
+  auto channel_start = [&](std::int32_t v) {
+    return Vec3(frame.local(cavity.vertices[v]) + Vec3(0.123 * g.s, 0, 0));
+  };
   // Cuts a channel from parting line vertex v unless it would merge with one already cut.
   auto add_channel = [&](std::int32_t v, bool sprue) {
     const double radius = 0.5 * (sprue ? opts.sprue_diameter_mm : opts.vent_diameter_mm);
-    // A fraction of a cell off the vertex, so the channel's axis does not run along the part's
-    // edges or walls.
-    const Vec3 p = frame.local(cavity.vertices[v]) + Vec3(0.123 * g.s, 0, 0);
+    const Vec3 p = channel_start(v);
     // Two channels side by side would merge; the higher one vents this trap's neighbourhood.
     for (const auto& [x, r] : taken)
       if (std::abs(p.x() - x) < r + radius + 2 * g.s) return false;
@@ -599,24 +606,16 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
   // whose way up is clear of the cavity, so the air the pour pushes up has a way out besides
   // the sprue the resin fills.
   if (mold.vents.empty()) {
-    std::vector<std::int32_t> line;
-    for (const auto& e : split.parting_edges) line.insert(line.end(), e.begin(), e.end());
-    std::sort(line.begin(), line.end());
-    line.erase(std::unique(line.begin(), line.end()), line.end());
-    std::sort(line.begin(), line.end(), [&](std::int32_t a, std::int32_t b) {
-      const double ha = cavity.vertices[a].dot(up), hb = cavity.vertices[b].dot(up);
-      return ha != hb ? ha > hb : a < b;
-    });
     const double r = 0.5 * opts.vent_diameter_mm;
     auto clear_above = [&](std::int32_t v) {
       for (const double across : {-r, 0.0, r}) {
-        const Vec3 origin = cavity.vertices[v] + (0.123 * g.s + across) * frame.x;
+        const Vec3 origin = frame.world(channel_start(v) + Vec3(across, 0, 0));
         for (const LineInterval& in : robust_line_intervals(index, origin, up, hair))
           if (in.end > r) return false;
       }
       return true;
     };
-    for (std::int32_t v : line)
+    for (std::int32_t v : by_height)
       if (clear_above(v) && add_channel(v, false)) break;
   }
 
