@@ -129,6 +129,18 @@ int run_decompose(const CliOptions& cli) {
   if (!d.assembly.found)
     std::fprintf(stderr, "dhfcast: warning: %s\n", d.assembly.message.c_str());
   report_molds(d.molds);
+  // Carving is part of the result: the user glues around these holes.
+  for (const CarvedVoid& v : d.carving.voids)
+    std::fprintf(stderr,
+                 "dhfcast: note: carved a %.3g mm3 hole inside part %d where it was no double "
+                 "height field (paper 4.3.1; see carving in decomposition.json)\n",
+                 v.volume_mm3, v.part);
+  if (d.carving.gap_lines_after > 0)
+    std::fprintf(stderr,
+                 "dhfcast: warning: %d lines along their part's direction still meet it more than "
+                 "once (%zu patches could not be mended: see carving.refused in "
+                 "decomposition.json)\n",
+                 d.carving.gap_lines_after, d.carving.refused.size());
   for (const InaccessibleRegion& r : d.inaccessible_regions)
     std::fprintf(stderr,
                  "dhfcast: note: %d tets (%.1f mm3) are accessible from no direction; that "

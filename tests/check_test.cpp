@@ -291,6 +291,60 @@ TEST(Check, MissingChunkFailsCoverage) {
   EXPECT_NEAR(figure(item(r, "fidelity"), "input_to_parts_max_mm"), 20.0, 0.5);
 }
 
+// The top part has a 20 x 20 x 5 mm notch in its bottom face, over the bottom part: a void
+// inside the assembled object, as carving leaves one.
+struct NotchedTop {
+  std::vector<PartSpec> parts;
+  TriMesh hole;
+};
+
+NotchedTop notched_top() {
+  const TriMesh top =
+      grid_surface({0, 40, 60, 100}, {0, 20, 40, 60}, {20, 25, 40},
+                   [](int i, int j, int k) { return !(i == 1 && j == 1 && k == 0); });
+  return {{{box(kLo, kCutHi)}, {top}}, box(Vec3(40, 20, 20), Vec3(60, 40, 25))};
+}
+
+TEST(Check, CarvedVoidIsCountedApartFromGaps) {
+  const NotchedTop n = notched_top();
+  auto list_void = [&](const std::string& mesh, double volume) {
+    return [=](nlohmann::json& j) {
+      j["carving"] = {{"voids", {{{"part", 1}, {"mesh", mesh}, {"volume_mm3", volume}}}}};
+    };
+  };
+  Folder f = write_folder("carved", box(kLo, kHi), n.parts, {0, 1},
+                          list_void("parts/void_000.stl", 2000.0));
+  write_stl(f.outdir + "/parts/void_000.stl", n.hole);
+  CheckReport r = run(f);
+  SCOPED_TRACE(format_text(r));
+  EXPECT_TRUE(r.passed());
+  const CheckItem& coverage = item(r, "coverage");
+  EXPECT_NEAR(figure(coverage, "carved_mm3"), 2000.0, 1e-9);
+  EXPECT_NEAR(figure(coverage, "carved_fraction"), 2000.0 / 240000.0, 0.002);
+  EXPECT_EQ(figure(coverage, "gap_fraction"), 0.0);
+  EXPECT_LT(figure(coverage, "volume_error"), 1e-9);
+  EXPECT_EQ(figure(item(r, "solids"), "void_meshes"), 1.0);
+  // The notch's walls are not outer surface.
+  EXPECT_LT(figure(item(r, "fidelity"), "parts_to_input_max_mm"), 1e-3);
+
+  // Unlisted, the same hole is a gap (0.83 % of the input) and a volume error, and its walls
+  // are surface that is not the input's.
+  r = run(write_folder("uncarved", box(kLo, kHi), n.parts, {0, 1}));
+  expect_failures(r, {"coverage", "fidelity"});
+  EXPECT_NEAR(figure(item(r, "coverage"), "gap_fraction"), 2000.0 / 240000.0, 0.002);
+
+  // A void that overlaps a part counts as overlap; one whose file is missing breaks the contract.
+  f = write_folder("carved-overlap", box(kLo, kHi), n.parts, {0, 1},
+                   list_void("parts/void_000.stl", 4000.0));
+  write_stl(f.outdir + "/parts/void_000.stl", box(Vec3(40, 20, 15), Vec3(60, 40, 25)));
+  r = run(f);
+  EXPECT_FALSE(item(r, "coverage").passed);
+  EXPECT_NEAR(figure(item(r, "coverage"), "overlap_fraction"), 2000.0 / 240000.0, 0.002);
+  r = run(write_folder("carved-missing", box(kLo, kHi), n.parts, {0, 1},
+                       list_void("parts/void_009.stl", 2000.0)));
+  EXPECT_FALSE(item(r, "contract").passed);
+}
+
 TEST(Check, AssemblyOrderThroughAnEarlierPartFails) {
   // Top first: the bottom part then arrives from above, through it.
   const CheckReport r = run(write_folder("order", box(kLo, kHi), two_boxes(false), {1, 0}));

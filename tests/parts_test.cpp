@@ -1624,5 +1624,155 @@ TEST(FillGaps, ThePartUnderASkinOverAirTakesIt) {
   for (std::int32_t k = 0; k < 2; ++k) EXPECT_TRUE(dhf_gaps(filled, 900, kTolerance_mm)[k].empty());
 }
 
+// Part P (label 0, along z): the bottom layer, the x = 0 wall, and a 20 x 30 x 10 mm tongue
+// reaching from the wall at height 20..30, inside part Q (label 1, along x: everything else).
+// Lines along z through the tongue meet P, Q, P, Q: the tongue touches only Q, so carving it out
+// leaves the outer surface as it is.
+int tongue_inside_the_neighbour(const Cell& c) {
+  const bool tongue = c[2] == 2 && c[0] >= 1 && c[0] <= 2 && c[1] >= 1 && c[1] <= 3;
+  return c[2] == 0 || c[0] == 0 || tongue ? 0 : 1;
+}
+
+// The parts' triangles facing `neighbor`, as canonical corner lists.
+std::multiset<std::array<double, 9>> facing(const Part& part, std::int32_t neighbor,
+                                            bool reversed = false) {
+  std::multiset<std::array<double, 9>> out;
+  for (std::size_t t = 0; t < part.mesh.triangles.size(); ++t)
+    if (part.triangle_neighbor[t] == neighbor)
+      out.insert(canonical(part.mesh, part.mesh.triangles[t], reversed));
+  return out;
+}
+
+double outer_area(const std::vector<Part>& parts) {
+  double area = 0.0;
+  for (const Part& part : parts)
+    for (std::size_t t = 0; t < part.mesh.triangles.size(); ++t)
+      if (part.triangle_neighbor[t] == -1) {
+        const Tri& tri = part.mesh.triangles[t];
+        const std::vector<Vec3>& v = part.mesh.vertices;
+        area += 0.5 * (v[tri[1]] - v[tri[0]]).cross(v[tri[2]] - v[tri[0]]).norm();
+      }
+  return area;
+}
+
+// What carve_dhf_gaps() must keep, whatever it did: closed parts whose interfaces are shared
+// triangle for triangle, the outer surface's area, and the volume (parts and voids).
+void expect_sound(const std::vector<Part>& before, const std::vector<Part>& after,
+                  const Carving& carving) {
+  double volume_before = 0.0, volume_after = 0.0;
+  for (const Part& part : before) volume_before += part.volume_mm3;
+  for (const Part& part : after) volume_after += part.volume_mm3;
+  for (const CarvedVoid& v : carving.voids) volume_after += v.volume_mm3;
+  EXPECT_NEAR(volume_after, volume_before, 1e-6 * volume_before);
+  EXPECT_NEAR(outer_area(after), outer_area(before), 1e-6 * outer_area(before));
+  for (std::int32_t a = 0; a < static_cast<std::int32_t>(after.size()); ++a) {
+    expect_closed_manifold(after[a].mesh);
+    EXPECT_NEAR(after[a].volume_mm3, signed_volume(after[a].mesh), 1e-9);
+    for (std::int32_t b = a + 1; b < static_cast<std::int32_t>(after.size()); ++b)
+      EXPECT_EQ(facing(after[a], b), facing(after[b], a, true)) << a << " and " << b;
+  }
+}
+
+// The parts of tongue_inside_the_neighbour() in 10 mm cells, 40 x 50 x 40 mm, and the lines
+// to look for their gaps on (a 0.9 mm grid).
+std::vector<Part> tongue_parts() {
+  const Grid g = make_grid(4, 5, 4, 10.0);
+  return extract_parts(g.mesh, per_cell(g, tongue_inside_the_neighbour), zeros(g), {{kZ, kX}});
+}
+constexpr std::int64_t kTongueLines = 2500;
+
+TEST(CarveDhfGaps, TheGapUnderATongueIsFilledByThePart) {
+  const std::vector<Part> before = tongue_parts();
+  ASSERT_EQ(before.size(), 2u);
+  const std::int32_t p = before[0].direction_index == 0 ? 0 : 1, q = 1 - p;
+  std::vector<Part> parts = before;
+  const Carving carving = carve_dhf_gaps(parts, kTongueLines, kTolerance_mm);
+  EXPECT_TRUE(carving.voids.empty());
+  ASSERT_EQ(carving.exchanges.size(), 1u) << (carving.refused.empty() ? "" : carving.refused[0]);
+  EXPECT_EQ(carving.exchanges[0].from, q);
+  EXPECT_EQ(carving.exchanges[0].to, p);
+  // The 20 x 30 x 10 mm of Q under the tongue, and less than half a line spacing (0.45 mm)
+  // around it.
+  EXPECT_GE(carving.exchanges[0].volume_mm3, 6000.0 - 1e-6);
+  EXPECT_LT(carving.exchanges[0].volume_mm3, 6000.0 + 0.45 * (2 * 31 + 2 * 21) * 10);
+  EXPECT_GT(carving.gap_lines_before, 500);
+  EXPECT_EQ(carving.gap_lines_after, 0);
+  for (std::int32_t k : {p, q})
+    EXPECT_TRUE(dhf_gaps(parts, 4 * kTongueLines, kTolerance_mm)[k].empty());
+  // Filled inside the solid: the outer surface is the same triangles.
+  for (std::int32_t k : {p, q}) EXPECT_EQ(facing(parts[k], -1), facing(before[k], -1));
+  expect_sound(before, parts, carving);
+}
+
+TEST(CarveDhfGaps, ATongueInsideTheNeighbourIsCarvedIntoAVoidAndTheOuterSurfaceStays) {
+  const std::vector<Part> before = tongue_parts();
+  ASSERT_EQ(before.size(), 2u);
+  const std::int32_t p = before[0].direction_index == 0 ? 0 : 1, q = 1 - p;
+  ASSERT_GT(dhf_gaps(before, kTongueLines, kTolerance_mm)[p].size(), 500u);
+
+  std::vector<Part> parts = before;
+  const Carving carving = carve_dhf_gaps(parts, kTongueLines, kTolerance_mm, false);
+  EXPECT_TRUE(carving.exchanges.empty());
+  ASSERT_EQ(carving.voids.size(), 1u) << (carving.refused.empty() ? "" : carving.refused[0]);
+  EXPECT_EQ(carving.gap_lines_after, 0);
+  EXPECT_GT(carving.gap_lines_before, 500);
+  EXPECT_TRUE(dhf_gaps(parts, 4 * kTongueLines, kTolerance_mm)[p].empty());
+  const CarvedVoid& hole = carving.voids[0];
+  EXPECT_EQ(hole.part, p);
+  // The tongue, and a sliver of the wall less than half a line spacing (0.45 mm) thick.
+  EXPECT_GE(hole.volume_mm3, 6000.0 - 1e-6);
+  EXPECT_LT(hole.volume_mm3, 6000.0 + 0.45 * 31 * 16);
+  EXPECT_NEAR(hole.volume_mm3, signed_volume(hole.mesh), 1e-9 * hole.volume_mm3);
+  expect_closed_manifold(hole.mesh);
+  for (const Part& part : parts) expect_closed_manifold(part.mesh);
+  EXPECT_NEAR(parts[p].volume_mm3, before[p].volume_mm3 - hole.volume_mm3, 1e-6);
+  EXPECT_NEAR(parts[q].volume_mm3, before[q].volume_mm3, 1e-6);
+  // The outer surface is the same triangles; the interface is shared exactly; Q's walls of the
+  // void face it, as the void's faces that came from Q do.
+  for (std::int32_t k : {p, q}) EXPECT_EQ(facing(parts[k], -1), facing(before[k], -1));
+  EXPECT_EQ(facing(parts[p], q), facing(parts[q], p, true));
+  EXPECT_FALSE(facing(parts[q], kCarvedVoid).empty());
+  EXPECT_FALSE(facing(parts[p], kCarvedVoid).empty());  // the sliver's wall
+  // What P lost is the void: its triangles are P's new walls and Q's, reversed.
+  std::multiset<std::array<double, 9>> walls = facing(parts[q], kCarvedVoid, true);
+  for (const auto& t : facing(parts[p], kCarvedVoid, true)) walls.insert(t);
+  std::multiset<std::array<double, 9>> hole_triangles;
+  for (const Tri& t : hole.mesh.triangles) hole_triangles.insert(canonical(hole.mesh, t, false));
+  EXPECT_EQ(hole_triangles, walls);
+  expect_sound(before, parts, carving);
+}
+
+TEST(CarveDhfGaps, JawsOnTheOuterSurfaceAreNotCarvedButOneGoesToThePartBetweenThem) {
+  const Grid g = make_grid(4, 3, 3, 10.0);
+  const std::vector<std::vector<Vec3>> dirs{{kZ, kX}};
+  const auto before = extract_parts(g.mesh, per_cell(g, c_around_a_tongue), zeros(g), dirs);
+  const std::int32_t p = before[0].direction_index == 0 ? 0 : 1, q = 1 - p;
+  // Both jaws reach the outer surface: nothing can be carved.
+  std::vector<Part> parts = before;
+  Carving carving = carve_dhf_gaps(parts, kGapLines, kTolerance_mm, false);
+  EXPECT_TRUE(carving.voids.empty());
+  EXPECT_GT(carving.gap_lines_after, 0);
+  EXPECT_EQ(carving.gap_lines_after, carving.gap_lines_before);
+  ASSERT_FALSE(carving.refused.empty());
+  for (const std::string& why : carving.refused)
+    EXPECT_NE(why.find("outer surface on both sides"), std::string::npos) << why;
+  for (std::size_t k = 0; k < parts.size(); ++k) {
+    EXPECT_EQ(parts[k].mesh.vertices, before[k].mesh.vertices);
+    EXPECT_EQ(parts[k].mesh.triangles, before[k].mesh.triangles);
+  }
+  // Exchanging material mends it: the tongue reaches the outer surface, so P cannot take all
+  // of it, but pieces of it or of the lower jaw under the mouth change hands.
+  carving = carve_dhf_gaps(parts, kGapLines, kTolerance_mm);
+  EXPECT_TRUE(carving.voids.empty());
+  EXPECT_FALSE(carving.exchanges.empty());
+  for (const GapExchange& e : carving.exchanges) {
+    EXPECT_TRUE((e.from == p && e.to == q) || (e.from == q && e.to == p));
+    EXPECT_GT(e.volume_mm3, 0.0);
+  }
+  EXPECT_LT(carving.gap_lines_after, carving.gap_lines_before);
+  expect_sound(before, parts, carving);
+  EXPECT_THROW(carve_dhf_gaps(parts, 0, kTolerance_mm), Error);
+}
+
 }  // namespace
 }  // namespace dhfcast

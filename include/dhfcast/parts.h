@@ -10,6 +10,9 @@
 
 namespace dhfcast {
 
+// Part::triangle_neighbor of a triangle that faces a hole carved out of the solid.
+constexpr std::int32_t kCarvedVoid = -2;
+
 // One solid part, cast in its own two-piece mold along `direction`.
 struct Part {
   std::int32_t id = 0;
@@ -20,8 +23,8 @@ struct Part {
   std::vector<std::int32_t> tets;  // tets of the tet mesh it is made of, ascending
   TriMesh mesh;  // closed, 2-manifold, outward boundary (vertices duplicated where the part
                  // touches itself at an edge or vertex only)
-  // triangle_neighbor[i]: the part on the other side of mesh.triangles[i], or -1 when the
-  // triangle lies on the solid's outer surface.
+  // triangle_neighbor[i]: the part on the other side of mesh.triangles[i], -1 when the
+  // triangle lies on the solid's outer surface, kCarvedVoid when it faces a carved hole.
   std::vector<std::int32_t> triangle_neighbor;
   double volume_mm3 = 0.0;
 };
@@ -333,5 +336,47 @@ struct DhfGap {
 // check`'s rule), bottom to top; per part. Deterministic.
 std::vector<std::vector<DhfGap>> dhf_gaps(const std::vector<Part>& parts, std::int64_t lines,
                                           double epsilon_mm);
+
+// A hole carved out of a part where it was no double height field (paper §4.3.1).
+struct CarvedVoid {
+  std::int32_t part = -1;  // the part it was carved from
+  TriMesh mesh;            // closed, outward: the material removed
+  double volume_mm3 = 0.0;
+};
+
+// Material one part gave another to mend a gap (see carve_dhf_gaps()).
+struct GapExchange {
+  std::int32_t from = -1, to = -1;
+  double volume_mm3 = 0.0;
+};
+
+// What carve_dhf_gaps() did.
+struct Carving {
+  std::int32_t gap_lines_before = 0, gap_lines_after = 0;  // of dhf_gaps(), all parts
+  std::vector<GapExchange> exchanges;
+  std::vector<CarvedVoid> voids;
+  // Patches of gap lines left as they were, and why (one line each).
+  std::vector<std::string> refused;
+};
+
+// The paper's conservative carving (§4.3.1), and better, for what the label-level repairs leave:
+// where lines along a part P's direction meet it in several stretches deeper apart than
+// epsilon_mm (dhf_gaps() on about `lines` lines). Neighbouring such lines form a patch (with
+// the lines of shallow gaps two cells around it), handled by one convex hull over the lines'
+// grid cells:
+// - filling first: when one part Q lies in the gaps, the hull spans them, from P's first
+//   stretches to its last, and P takes it from Q (P ∪ hull, Q minus the hull);
+// - else carving: when P's stretches past the first gap (or before the last) lie inside the
+//   solid, bounded by P's interfaces only, the hull spans from the middle of the gap to
+//   epsilon_mm past them: P becomes P minus the hull, and the material removed a void, whose
+//   walls the neighbours across it keep (their triangles there face kCarvedVoid).
+// Neither ever moves the outer surface: a hull that would reach it (or, carving, a curve where
+// P meets two other parts; filling, a third part) is refused, as is one CGAL rejects, one that
+// makes a part fall apart, and one after which P has no fewer gap lines or another part more.
+// A refused patch is halved, up to three times. Interfaces stay shared exactly. Deterministic.
+// Pre: parts have ids 0..n-1 in order and closed meshes with triangle_neighbor.
+// With exchange false, only carving is tried.
+Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsilon_mm,
+                       bool exchange = true);
 
 }  // namespace dhfcast

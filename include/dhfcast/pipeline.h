@@ -105,6 +105,8 @@ struct Decomposition {
   AssemblyPlan assembly;
   std::vector<WayClearing> way_clearings;  // in the order they were made
   std::vector<GapFilling> gap_fillings;    // likewise, after the ways were cleared
+  // Holes carved where gaps were still left (paper §4.3.1), after the label-level repairs.
+  Carving carving;
   std::vector<MadeCandidate> made_candidates;  // the one kept is marked
   std::vector<Mold> molds;  // one per part, in part order; empty when !make_molds
   double assembly_tolerance_mm = 0.0;  // depth into a part below which a move does not block

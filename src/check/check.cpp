@@ -85,12 +85,20 @@ struct PartEntry {
   std::int32_t sprues = 0, vents = 0, keys = 0;
 };
 
+// A hole carved out of a part (carving.voids).
+struct VoidEntry {
+  std::int32_t part = -1;
+  std::string mesh;
+  double volume_mm3 = 0.0;
+};
+
 struct FolderContents {
   bool parsed = false;
   bool parts_complete = false;  // every part has an id, a mesh file and a direction
   std::vector<PartEntry> parts;
   std::vector<std::int32_t> order;  // assembly_order as written
   bool order_is_permutation = false;
+  std::vector<VoidEntry> voids;
   double input_volume_mm3 = 0.0;
   std::optional<Box3> input_bbox;
   std::vector<std::string> problems;  // contract violations, in the order found
@@ -278,6 +286,32 @@ FolderContents read_contents(const fs::path& outdir, const std::string& text) {
                       (ids.empty() || (*ids.begin() == 0 && *ids.rbegin() == n - 1));
   if (!ids_ok) problem(format("part ids are not 0..%d, each once", n - 1));
 
+  // Holes carved out of parts (absent in folders written before carving existed).
+  if (j.contains("carving")) {
+    const json& carving = j["carving"];
+    if (!carving.is_object() || !carving.contains("voids") || !carving["voids"].is_array()) {
+      problem("carving has no voids array");
+    } else {
+      for (std::size_t i = 0; i < carving["voids"].size(); ++i) {
+        const json& jv = carving["voids"][i];
+        const std::string where = "carving.voids[" + std::to_string(i) + "]";
+        VoidEntry v;
+        if (!jv.is_object() || !jv.contains("part") || !jv["part"].is_number_integer() ||
+            !ids.contains(jv["part"].get<std::int32_t>()) || !jv.contains("mesh") ||
+            !jv["mesh"].is_string() || !jv.contains("volume_mm3") ||
+            !jv["volume_mm3"].is_number() || !(jv["volume_mm3"].get<double>() > 0)) {
+          problem(where + " is not {\"part\": id, \"mesh\": file, \"volume_mm3\": > 0}");
+          continue;
+        }
+        v.part = jv["part"].get<std::int32_t>();
+        v.mesh = jv["mesh"].get<std::string>();
+        v.volume_mm3 = jv["volume_mm3"].get<double>();
+        file_exists(v.mesh, where + " mesh");
+        c.voids.push_back(v);
+      }
+    }
+  }
+
   if (!j.contains("assembly_order") || !j["assembly_order"].is_array()) {
     problem("no assembly_order array");
   } else {
@@ -327,11 +361,11 @@ CheckItem contract_item(const FolderContents& c) {
 // --- meshes ---
 
 struct LoadedMesh {
-  enum class Kind { Part, MoldUp, MoldDown };
+  enum class Kind { Part, MoldUp, MoldDown, Void };
   std::string file;  // as named in decomposition.json
   Kind kind = Kind::Part;
   bool is_part() const { return kind == Kind::Part; }
-  std::int32_t part = 0;  // index into FolderContents::parts
+  std::int32_t part = 0;  // index into FolderContents::parts (voids: into ::voids)
   std::optional<TriMesh> mesh;                          // mold halves: moved to the model's frame
   std::optional<Motion> to_model = Motion::Identity();  // mold halves: from the file's frame
   std::string problem;        // why it is not a valid solid ("" when it is)
@@ -405,6 +439,13 @@ std::vector<LoadedMesh> load_meshes(const fs::path& outdir, const FolderContents
       add(p.mold_down, LoadedMesh::Kind::MoldDown, p.down_to_model);
     }
   }
+  for (std::size_t i = 0; i < c.voids.size(); ++i) {
+    LoadedMesh m;
+    m.file = c.voids[i].mesh;
+    m.kind = LoadedMesh::Kind::Void;
+    m.part = static_cast<std::int32_t>(i);
+    meshes.push_back(std::move(m));
+  }
   tbb::parallel_for(std::size_t{0}, meshes.size(), [&](std::size_t i) {
     LoadedMesh& m = meshes[i];
     try {
@@ -413,11 +454,13 @@ std::vector<LoadedMesh> load_meshes(const fs::path& outdir, const FolderContents
       m.problem = e.what();
       return;
     }
-    m.problem = m.is_part() ? part_problem(*m.mesh) : mold_problem(*m.mesh);
+    const bool solid = m.is_part() || m.kind == LoadedMesh::Kind::Void;
+    m.problem = solid ? part_problem(*m.mesh) : mold_problem(*m.mesh);
     if (m.to_model)
       for (Vec3& v : m.mesh->vertices) v = m.to_model->leftCols<3>() * v + m.to_model->col(3);
-    const double json_volume = c.parts[m.part].volume_mm3;
-    if (m.is_part() && std::isfinite(json_volume)) {
+    const double json_volume =
+        m.kind == LoadedMesh::Kind::Void ? c.voids[m.part].volume_mm3 : c.parts[m.part].volume_mm3;
+    if (solid && std::isfinite(json_volume)) {
       const double v = signed_volume(*m.mesh);
       m.volume_error = std::abs(json_volume - v) / std::max(std::abs(v), 1e-300);
       m.volume_ok = std::abs(json_volume - v) <=
@@ -430,11 +473,11 @@ std::vector<LoadedMesh> load_meshes(const fs::path& outdir, const FolderContents
 CheckItem solids_item(const std::vector<LoadedMesh>& meshes) {
   CheckItem item;
   item.name = "solids";
-  std::int64_t parts = 0, molds = 0, bad = 0;
+  std::int64_t parts = 0, molds = 0, voids = 0, bad = 0;
   double worst_volume_error = 0.0;
   std::string first;
   for (const LoadedMesh& m : meshes) {
-    (m.is_part() ? parts : molds)++;
+    (m.kind == LoadedMesh::Kind::Void ? voids : m.is_part() ? parts : molds)++;
     worst_volume_error = std::max(worst_volume_error, m.volume_error);
     std::string problem = m.problem;
     if (problem.empty() && !m.volume_ok)
@@ -446,15 +489,17 @@ CheckItem solids_item(const std::vector<LoadedMesh>& meshes) {
   item.passed = !meshes.empty() && bad == 0;
   item.figures = {{"part_meshes", static_cast<double>(parts)},
                   {"mold_meshes", static_cast<double>(molds)},
+                  {"void_meshes", static_cast<double>(voids)},
                   {"bad_meshes", static_cast<double>(bad)},
                   {"max_volume_error", worst_volume_error}};
   if (meshes.empty())
     item.summary = "no part meshes to check";
   else if (bad == 0)
     item.summary =
-        format("%lld part%s%s: closed, oriented, outward; json volumes match (%.2g relative)",
+        format("%lld part%s%s%s: closed, oriented, outward; json volumes match (%.2g relative)",
                static_cast<long long>(parts), parts == 1 ? "" : "s",
-               molds ? format(" and %lld mold halves", static_cast<long long>(molds)).c_str() : "",
+               molds ? format(", %lld mold halves", static_cast<long long>(molds)).c_str() : "",
+               voids ? format(", %lld carved voids", static_cast<long long>(voids)).c_str() : "",
                worst_volume_error);
   else
     item.summary =
@@ -514,7 +559,7 @@ CheckReport check_output(const CheckOptions& options) {
   else if (!contents.parts_complete)
     cannot_run = "the parts list is incomplete (see contract)";
   for (const LoadedMesh& m : meshes)
-    if (cannot_run.empty() && m.is_part() && !usable(m))
+    if (cannot_run.empty() && (m.is_part() || m.kind == LoadedMesh::Kind::Void) && !usable(m))
       cannot_run = m.file + " could not be read (see solids)";
   const char* kGeometric[] = {"coverage", "dhf", "assembly", "molds", "fidelity"};
   if (!cannot_run.empty()) {
@@ -550,6 +595,9 @@ CheckReport check_output(const CheckOptions& options) {
           .keys = entry.keys,
           .mold_up = std::nullopt,
           .mold_down = std::nullopt});
+    } else if (m.kind == LoadedMesh::Kind::Void) {
+      const VoidEntry& v = contents.voids[m.part];
+      context.voids.push_back({v.part, v.volume_mm3, std::move(*indices[i])});
     } else if (indices[i]) {
       (m.kind == LoadedMesh::Kind::MoldUp ? context.parts.back().mold_up
                                           : context.parts.back().mold_down) =

@@ -38,6 +38,13 @@ struct CheckContext {
   std::vector<CheckedPart> parts;       // in decomposition.json order
   std::vector<std::int32_t> order;      // indices into parts, in assembly order; empty when
                                         // assembly_order is not a permutation of the ids
+  // Holes carved out of parts: inside the input, in no part.
+  struct CarvedVoid {
+    std::int32_t part = -1;
+    double volume_mm3 = 0.0;
+    SurfaceIndex solid;
+  };
+  std::vector<CarvedVoid> voids;
   std::optional<SurfaceIndex> input;    // the input mesh (CheckOptions::input_mesh)
   double json_input_volume_mm3 = 0.0;   // 0 when absent
   std::optional<Box3> json_input_bbox;  // input.bbox_mm

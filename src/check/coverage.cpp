@@ -29,11 +29,12 @@ struct Tally {
   std::int64_t inside = 0;   // inside the input (without one: inside some part)
   std::int64_t once = 0;     // of those, inside exactly one part
   std::int64_t overlap = 0;  // inside two or more parts
-  std::int64_t gap = 0;      // inside the input, in no part
+  std::int64_t gap = 0;      // inside the input, in no part (nor in a carved void)
   std::int64_t outside = 0;  // in some part, outside the input
+  std::int64_t carved = 0;   // inside the input, in a carved void and no part
 };
 
-const Tally kInconsistent{false, 0, 0, 0, 0, 0};
+const Tally kInconsistent{false, 0, 0, 0, 0, 0, 0};
 
 bool covers(const std::vector<Interval>& in, double t) {
   return std::ranges::any_of(in, [t](const Interval& i) { return i.begin <= t && t <= i.end; });
@@ -59,15 +60,27 @@ Tally classify(const CheckContext& c, const Line& line, double z_mid) {
     if (!in) return kInconsistent;
     if (!in->empty()) parts.push_back(std::move(*in));
   }
+  // A void counts as one more solid for overlaps: it must lie in no part.
+  std::vector<std::vector<Interval>> voids;
+  for (const CheckContext::CarvedVoid& v : c.voids) {
+    if (!box_covers_xy(v.solid.bbox(), line.x, line.y)) continue;
+    std::optional<std::vector<Interval>> in = v.solid.line_intervals(origin, up);
+    if (!in) return kInconsistent;
+    if (!in->empty()) voids.push_back(std::move(*in));
+  }
   for (double z : line.z) {
     const double t = z - z_mid;
     int count = 0;
     for (const std::vector<Interval>& in : parts) count += covers(in, t) ? 1 : 0;
-    const bool in_input = input ? covers(*input, t) : count > 0;
+    int carved = 0;
+    for (const std::vector<Interval>& in : voids) carved += covers(in, t) ? 1 : 0;
+    const bool in_input = input ? covers(*input, t) : count + carved > 0;
+    tally.carved += in_input && count == 0 && carved == 1;
+    count += carved;
     tally.inside += in_input;
     tally.once += in_input && count == 1;
     tally.overlap += count >= 2;
-    tally.gap += in_input && count == 0;
+    tally.gap += in_input && count == 0 && carved == 0;
     tally.outside += !in_input && count > 0;
   }
   return tally;
@@ -83,11 +96,13 @@ CheckItem check_coverage(const CheckContext& c) {
   // --- 1. volumes ---
   double parts_volume = 0.0;
   for (const CheckedPart& p : c.parts) parts_volume += p.volume_mm3;
+  double carved_volume = 0.0;
+  for (const CheckContext::CarvedVoid& v : c.voids) carved_volume += v.volume_mm3;
   const double input_volume = c.input ? signed_volume(c.input->mesh()) : c.json_input_volume_mm3;
   const bool volume_known = input_volume > 0;
   const double reference = volume_known ? input_volume : parts_volume;
   const double volume_error =
-      volume_known ? std::abs(parts_volume - input_volume) / input_volume : 0.0;
+      volume_known ? std::abs(parts_volume + carved_volume - input_volume) / input_volume : 0.0;
 
   // --- 2. sample lines, in a box holding the input and every part ---
   Box3 box = c.input             ? c.input->bbox()
@@ -129,6 +144,7 @@ CheckItem check_coverage(const CheckContext& c) {
       total.overlap += t.overlap;
       total.gap += t.gap;
       total.outside += t.outside;
+      total.carved += t.carved;
     }
   }
 
@@ -140,6 +156,7 @@ CheckItem check_coverage(const CheckContext& c) {
   const double overlap = fraction(total.overlap);
   const double gap = fraction(total.gap);
   const double outside = fraction(total.outside);
+  const double carved = fraction(total.carved);
   const double once = total.inside > 0 ? double(total.once) / double(total.inside) : 0.0;
 
   item.figures = {{"input_volume_mm3", volume_known ? input_volume : 0.0},
@@ -152,6 +169,8 @@ CheckItem check_coverage(const CheckContext& c) {
     item.figures.emplace_back("gap_fraction", gap);
     item.figures.emplace_back("outside_fraction", outside);
   }
+  item.figures.emplace_back("carved_mm3", carved_volume);
+  if (c.input) item.figures.emplace_back("carved_fraction", carved);
   item.figures.emplace_back("inconsistent_lines", static_cast<double>(inconsistent));
 
   const bool volume_ok = volume_error <= o.max_volume_error;
@@ -160,11 +179,12 @@ CheckItem check_coverage(const CheckContext& c) {
   const bool outside_ok = !c.input || outside <= o.max_outside_fraction;
   item.passed = samples > 0 && volume_ok && overlap_ok && gap_ok && outside_ok;
 
-  std::string volumes = volume_known
-                            ? format("parts %.6g mm3 vs %s %.6g mm3 (error %.3f%%%s)", parts_volume,
-                                     c.input ? "input" : "json input", input_volume,
-                                     100 * volume_error, volume_ok ? "" : ", too large")
-                            : format("parts %.6g mm3 (input volume unknown)", parts_volume);
+  std::string volumes =
+      volume_known ? format("parts%s %.6g mm3 vs %s %.6g mm3 (error %.3f%%%s)",
+                            c.voids.empty() ? "" : " + carved", parts_volume + carved_volume,
+                            c.input ? "input" : "json input", input_volume, 100 * volume_error,
+                            volume_ok ? "" : ", too large")
+                   : format("parts %.6g mm3 (input volume unknown)", parts_volume);
   std::string sampled;
   if (samples == 0)
     sampled = "no sample line had consistent crossings";
@@ -178,6 +198,10 @@ CheckItem check_coverage(const CheckContext& c) {
         format("%lld samples: overlap %.3f%%%s (no --input: gap and outside not checked)",
                static_cast<long long>(samples), 100 * overlap, overlap_ok ? "" : " (too much)");
   item.summary = volumes + "; " + sampled;
+  if (!c.voids.empty())
+    item.summary +=
+        format("; %zu carved void%s, %.3g mm3 (%.4f%% of the input), counted apart", c.voids.size(),
+               c.voids.size() == 1 ? "" : "s", carved_volume, 100 * carved_volume / reference);
   return item;
 }
 

@@ -47,7 +47,8 @@ CheckItem check_fidelity(const CheckContext& c) {
     to_parts[i] = parts_surface.distance(on_input[i].point);
   });
 
-  // --- 3. outer part surface -> input: samples on or in another part are interfaces ---
+  // --- 3. outer part surface -> input: samples on or in another part are interfaces, on a
+  // carved void its walls ---
   const std::vector<SurfaceSample> on_parts = sample_surface(all, o.fidelity_samples, random);
   const double near_mm = 0.25 * o.epsilon_mm;
   std::vector<double> to_input(on_parts.size(), -1.0);
@@ -61,6 +62,13 @@ CheckItem check_fidelity(const CheckContext& c) {
           (p.array() > b.max.array() + near_mm).any())
         continue;
       if (c.parts[j].solid.distance(p) <= near_mm || c.parts[j].solid.contains(p)) return;
+    }
+    // The walls of a carved void are inside the solid too.
+    for (const CheckContext::CarvedVoid& v : c.voids) {
+      const Box3& b = v.solid.bbox();
+      if ((p.array() >= b.min.array() - near_mm).all() &&
+          (p.array() <= b.max.array() + near_mm).all() && v.solid.distance(p) <= near_mm)
+        return;
     }
     to_input[i] = c.input->distance(p);
   });

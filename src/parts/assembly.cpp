@@ -8,9 +8,11 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "carve.h"
 #include "dhfcast/error.h"
 #include "dhfcast/parts.h"
 
@@ -22,6 +24,7 @@ struct Crossing {
   double t_mm;
   std::int32_t part;
   bool exits;  // leaves the part (the face normal points along the ray)
+  std::int32_t triangle;
 };
 
 // Embree context extended with the list that the filter callback fills.
@@ -142,7 +145,8 @@ class PartScene {
       const double along = normal.dot(dir);
       if (along == 0.0) continue;
       const double t_mm = normal.dot(v[tri[0]] - origin) / along;
-      if (t_mm > 0.0) out.push_back({t_mm, part, along > 0.0});
+      if (t_mm > 0.0)
+        out.push_back({t_mm, part, along > 0.0, static_cast<std::int32_t>(std::uint32_t(h))});
     }
     std::sort(out.begin(), out.end(), [](const Crossing& a, const Crossing& b) {
       return a.t_mm != b.t_mm ? a.t_mm < b.t_mm : a.part < b.part;
@@ -469,6 +473,36 @@ std::vector<Obstruction> obstructions(const std::vector<Part>& parts, std::int32
 
 namespace {
 
+// Lines along a part's direction at the centres of square cells over its footprint's bounding
+// rectangle, about `lines` of them, starting below the part.
+struct LineGrid {
+  Vec3 d, u, v;
+  double spacing_mm = 0.0;
+  std::int64_t nu = 1, nv = 1;
+  Vec3 low{0, 0, 0};  // the box's low corner in (u, v, d)
+
+  LineGrid(const Part& part, std::int64_t lines)
+      : d(part.direction.normalized()), u(d.unitOrthogonal()), v(d.cross(u)) {
+    Box3 box{Vec3::Constant(INFINITY), Vec3::Constant(-INFINITY)};
+    for (const Vec3& x : part.mesh.vertices) {
+      const Vec3 local(x.dot(u), x.dot(v), x.dot(d));
+      box.min = box.min.cwiseMin(local);
+      box.max = box.max.cwiseMax(local);
+    }
+    const double width = box.max.x() - box.min.x(), depth = box.max.y() - box.min.y();
+    spacing_mm =
+        std::max(std::sqrt(width * depth / static_cast<double>(lines)), 1e-6 * (width + depth));
+    nu = std::max<std::int64_t>(1, std::llround(std::ceil(width / spacing_mm)));
+    nv = std::max<std::int64_t>(1, std::llround(std::ceil(depth / spacing_mm)));
+    low = box.min;
+  }
+  std::int64_t size() const { return nu * nv; }
+  Vec3 origin(std::int64_t k) const {
+    return (low.x() + (static_cast<double>(k % nu) + 0.5) * spacing_mm) * u +
+           (low.y() + (static_cast<double>(k / nu) + 0.5) * spacing_mm) * v + (low.z() - 1.0) * d;
+  }
+};
+
 // The gaps of part p on the line origin + t * dir, bottom to top (see dhf_gaps()).
 void line_gaps(const PartScene& scene, std::int32_t p, const Vec3& origin, const Vec3& dir,
                double epsilon_mm, std::vector<std::uint64_t>& hits,
@@ -524,31 +558,14 @@ std::vector<std::vector<DhfGap>> dhf_gaps(const std::vector<Part>& parts, std::i
   std::vector<std::vector<DhfGap>> gaps(parts.size());
   for (std::int32_t p = 0; p < static_cast<std::int32_t>(parts.size()); ++p) {
     if (parts[p].mesh.vertices.empty()) continue;
-    const Vec3 d = parts[p].direction.normalized(), u = d.unitOrthogonal(), v = d.cross(u);
-    Box3 box{Vec3::Constant(INFINITY), Vec3::Constant(-INFINITY)};  // in (u, v, d)
-    for (const Vec3& x : parts[p].mesh.vertices) {
-      const Vec3 local(x.dot(u), x.dot(v), x.dot(d));
-      box.min = box.min.cwiseMin(local);
-      box.max = box.max.cwiseMax(local);
-    }
-    // Lines at the centres of square cells, starting below the part's box.
-    const double width = box.max.x() - box.min.x(), depth = box.max.y() - box.min.y();
-    const double spacing_mm =
-        std::max(std::sqrt(width * depth / static_cast<double>(lines)), 1e-6 * (width + depth));
-    const auto nu = std::max<std::int64_t>(1, std::llround(std::ceil(width / spacing_mm)));
-    const auto nv = std::max<std::int64_t>(1, std::llround(std::ceil(depth / spacing_mm)));
-    auto origin = [&](std::int64_t k) -> Vec3 {
-      return (box.min.x() + (static_cast<double>(k % nu) + 0.5) * spacing_mm) * u +
-             (box.min.y() + (static_cast<double>(k / nu) + 0.5) * spacing_mm) * v +
-             (box.min.z() - 1.0) * d;
-    };
-    std::vector<std::vector<DhfGap>> per_line(static_cast<std::size_t>(nu * nv));
-    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, nu * nv, 1024),
+    const LineGrid grid(parts[p], lines);
+    std::vector<std::vector<DhfGap>> per_line(static_cast<std::size_t>(grid.size()));
+    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, grid.size(), 1024),
                       [&](const tbb::blocked_range<std::int64_t>& range) {
                         std::vector<std::uint64_t> hits;
                         std::vector<Crossing> crossings;
                         for (std::int64_t k = range.begin(); k != range.end(); ++k)
-                          line_gaps(scene, p, origin(k), d, epsilon_mm, hits, crossings,
+                          line_gaps(scene, p, grid.origin(k), grid.d, epsilon_mm, hits, crossings,
                                     per_line[k]);
                       });
     for (const std::vector<DhfGap>& line : per_line)
@@ -556,5 +573,152 @@ std::vector<std::vector<DhfGap>> dhf_gaps(const std::vector<Part>& parts, std::i
   }
   return gaps;
 }
+
+namespace detail {
+
+namespace {
+
+// Part p's stretches along a line, bottom to top, and whether each end lies on an interface.
+struct PartStretch {
+  double begin = 0.0, end = 0.0;
+  bool inner = true;  // both ends on interfaces with other parts
+};
+
+std::vector<PartStretch> part_stretches(const std::vector<Part>& parts, std::int32_t p,
+                                        const std::vector<Crossing>& crossings) {
+  const std::vector<std::int32_t>& neighbor = parts[p].triangle_neighbor;
+  // Every hit of p where the line crosses at t (several on a shared edge) must be an interface.
+  auto inner_at = [&](double t) {
+    const double tolerance = 1e-9 * (1.0 + std::abs(t));
+    for (const Crossing& c : crossings)
+      if (c.part == p && std::abs(c.t_mm - t) <= tolerance && neighbor[c.triangle] < 0)
+        return false;
+    return true;
+  };
+  std::vector<PartStretch> out;
+  bool inside = false;
+  for (const Crossing& c : crossings) {
+    if (c.part != p) continue;
+    if (!c.exits && !inside) {
+      inside = true;
+      out.push_back({c.t_mm, c.t_mm, inner_at(c.t_mm)});
+    } else if (c.exits && inside) {
+      inside = false;
+      out.back().end = c.t_mm;
+      out.back().inner = out.back().inner && inner_at(c.t_mm);
+    }
+  }
+  if (inside) out.pop_back();  // inconsistent crossings: the line is left alone
+  return out;
+}
+
+}  // namespace
+
+CarveLines carve_lines(const std::vector<Part>& parts, std::int32_t p, std::int64_t lines,
+                       double epsilon_mm) {
+  const PartScene scene(parts);
+  const LineGrid grid(parts[p], lines);
+  CarveLines out;
+  out.d = grid.d, out.u = grid.u, out.v = grid.v, out.spacing_mm = grid.spacing_mm;
+  std::vector<std::optional<CarveLine>> per_line(static_cast<std::size_t>(grid.size()));
+  tbb::parallel_for(
+      tbb::blocked_range<std::int64_t>(0, grid.size(), 1024),
+      [&](const tbb::blocked_range<std::int64_t>& range) {
+        std::vector<std::uint64_t> hits;
+        std::vector<Crossing> crossings;
+        for (std::int64_t k = range.begin(); k != range.end(); ++k) {
+          const Vec3 origin = grid.origin(k);
+          scene.crossings(origin, grid.d, hits, crossings);
+          const std::vector<PartStretch> stretches = part_stretches(parts, p, crossings);
+          // Stretches closer than a deep gap form one group (each is one when no gap is deep:
+          // such a line may border deep ones); the groups' first stretches.
+          if (stretches.size() < 2) continue;
+          std::vector<std::size_t> first{0}, every{0};
+          for (std::size_t i = 1; i < stretches.size(); ++i) {
+            const double t0 = stretches[i - 1].end, t1 = stretches[i].begin;
+            if (t1 - t0 > 2 * epsilon_mm &&
+                deeper_than(scene, p, origin, grid.d, t0, t1, epsilon_mm))
+              first.push_back(i);
+            every.push_back(i);
+          }
+          CarveLine line;
+          line.deep = first.size() >= 2;
+          if (!line.deep) first = std::move(every);
+          auto inner = [&](std::size_t from, std::size_t to) {
+            for (std::size_t i = from; i < to; ++i)
+              if (!stretches[i].inner) return false;
+            return true;
+          };
+          auto at = [&](double t) { return origin + t * grid.d; };
+          const std::size_t second = first[1], last = first.back();
+          line.iu = k % grid.nu, line.iv = k / grid.nu;
+          line.gap = at(0.5 * (stretches[second - 1].end + stretches[second].begin));
+          if (inner(second, stretches.size()))
+            line.above = std::make_pair(line.gap, at(stretches.back().end));
+          if (inner(0, last))
+            line.below =
+                std::make_pair(at(stretches.front().begin),
+                               at(0.5 * (stretches[last - 1].end + stretches[last].begin)));
+          // Filling: from the end of the first group to the beginning of the last, reaching a
+          // little into both (so no sliver of the neighbour is left), when one part fills it.
+          const double t0 = stretches[second - 1].end, t1 = stretches[last].begin;
+          // The part entered where the gaps begin, which every crossing in them must be of.
+          const double slack = 1e-9 * (1.0 + std::abs(t0) + std::abs(t1));
+          std::int32_t only = -1;
+          for (const Crossing& c : crossings)
+            if (c.part != p && c.t_mm >= t0 - slack && c.t_mm <= t1 + slack) {
+              if (only == -1 && !c.exits) only = c.part;
+              if (c.part != only && c.t_mm > t0 + slack && c.t_mm < t1 - slack) only = -2;
+            }
+          if (only >= 0) {
+            const double reach =
+                std::min({0.25 * epsilon_mm, 0.5 * (t0 - stretches[second - 1].begin),
+                          0.5 * (stretches[last].end - t1)});
+            line.fill = std::make_pair(at(t0 - reach), at(t1 + reach));
+            line.fill_from = only;
+          }
+          // Yielding: the shorter of the first and last groups, to the part across its gap, else
+          // to the one on its other side.
+          const double first_length = stretches[second - 1].end - stretches.front().begin;
+          const double last_length = stretches.back().end - stretches[last].begin;
+          const bool yield_first = first_length <= last_length;
+          const double inner_edge = yield_first ? stretches[second - 1].end : stretches[last].begin;
+          const double outer_edge = yield_first ? stretches.front().begin : stretches.back().end;
+          // The part the line enters at or after t (leaves at or before it, going down).
+          auto next_part = [&](double t, bool up) {
+            const double tolerance = 1e-9 * (1.0 + std::abs(t));
+            std::int32_t found = -1;
+            for (const Crossing& c : crossings) {
+              if (c.part == p) continue;
+              if (up && !c.exits && c.t_mm >= t - tolerance) return c.part;
+              if (!up && c.exits && c.t_mm <= t + tolerance) found = c.part;
+            }
+            return found;
+          };
+          std::int32_t across = next_part(inner_edge, yield_first);
+          if (across < 0) {  // the part on the group's other side, where it touches the group
+            const std::int32_t beyond = next_part(outer_edge, !yield_first);
+            for (const Crossing& c : crossings)
+              if (c.part == beyond &&
+                  std::abs(c.t_mm - outer_edge) <= 1e-9 * (1.0 + std::abs(outer_edge)))
+                across = beyond;
+          }
+          const double edge = inner_edge;
+          if (across >= 0) {
+            line.yield = yield_first
+                             ? std::make_pair(at(stretches.front().begin - epsilon_mm), line.gap)
+                             : std::make_pair(at(0.5 * (stretches[last - 1].end + edge)),
+                                              at(stretches.back().end + epsilon_mm));
+            line.yield_to = across;
+          }
+          per_line[k] = line;
+        }
+      });
+  for (std::optional<CarveLine>& line : per_line)
+    if (line) out.lines.push_back(*line);
+  return out;
+}
+
+}  // namespace detail
 
 }  // namespace dhfcast

@@ -1,13 +1,10 @@
 // Cuts the parts from the exact input solid, so their outer surfaces are the input surface and
-// not the tet mesh's approximation of it. The only file of the parts stage that includes CGAL.
+// not the tet mesh's approximation of it.
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
 #include <CGAL/AABB_triangle_primitive.h>
-#include <CGAL/Exact_predicates_exact_constructions_kernel.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
-#include <CGAL/Polygon_mesh_processing/corefinement.h>
 #include <CGAL/Side_of_triangle_mesh.h>
-#include <CGAL/Surface_mesh.h>
 #include <CGAL/convex_hull_3.h>
 #include <tbb/parallel_for.h>
 
@@ -21,26 +18,18 @@
 #include <string>
 #include <vector>
 
+#include "cgal_exact.h"
 #include "dhfcast/mesh.h"
 #include "dhfcast/parts.h"
 
 namespace dhfcast {
 
 namespace {
-namespace PMP = CGAL::Polygon_mesh_processing;
-using EK = CGAL::Exact_predicates_exact_constructions_kernel;
-using ExactMesh = CGAL::Surface_mesh<EK::Point_3>;
-using Face = ExactMesh::Face_index;
+using namespace exact;
 // Where a face of a cut part comes from: kFromSolid for the input surface, else the part
 // across the region's face it is a piece of (below kFromSolid for a moved-out outer face).
 constexpr std::int32_t kFromSolid = -2;
 
-// Vertex positions as map keys: shared vertices of neighbouring parts have equal coordinates.
-struct VecLess {
-  bool operator()(const Vec3& a, const Vec3& b) const {
-    return std::lexicographical_compare(a.data(), a.data() + 3, b.data(), b.data() + 3);
-  }
-};
 using PointMap = std::map<Vec3, Vec3, VecLess>;
 using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 using Triangles = std::vector<K::Triangle_3>;
@@ -48,27 +37,6 @@ using Tree = CGAL::AABB_tree<
     CGAL::AABB_traits<K, CGAL::AABB_triangle_primitive<K, Triangles::const_iterator>>>;
 K::Point_3 point(const Vec3& v) { return K::Point_3(v.x(), v.y(), v.z()); }
 using LengthMap = std::map<Vec3, double, VecLess>;
-
-std::optional<ExactMesh> to_exact(const TriMesh& m) {
-  ExactMesh out;
-  for (const Vec3& p : m.vertices) out.add_vertex(EK::Point_3(p.x(), p.y(), p.z()));
-  for (const Tri& t : m.triangles)
-    if (out.add_face(ExactMesh::Vertex_index(t[0]), ExactMesh::Vertex_index(t[1]),
-                     ExactMesh::Vertex_index(t[2])) == ExactMesh::null_face())
-      return std::nullopt;
-  return out;
-}
-
-// Keeps, for every face of the result, the origin of the face it was split or copied from.
-struct OriginVisitor : PMP::Corefinement::Default_visitor<ExactMesh> {
-  std::map<const ExactMesh*, ExactMesh::Property_map<Face, std::int32_t>> origin;
-  std::int32_t current = kFromSolid;
-  void before_subface_creations(Face f, ExactMesh& tm) { current = origin.at(&tm)[f]; }
-  void after_subface_created(Face f, ExactMesh& tm) { origin.at(&tm)[f] = current; }
-  void after_face_copy(Face from, const ExactMesh& src, Face to, ExactMesh& dst) {
-    origin.at(&dst)[to] = origin.at(&src)[from];
-  }
-};
 
 // The parts' outer triangles (triangle_neighbor < 0), each once, with their corner positions.
 std::vector<std::array<Vec3, 3>> outer_triangles(const std::vector<Part>& parts) {
@@ -161,13 +129,6 @@ PointMap input_normals(const TriMesh& solid, const Triangles& triangles, const T
   PointMap out;
   for (std::size_t i = 0; i < corners.size(); ++i) out.emplace(corners[i], normal[i]);
   return out;
-}
-
-// The point as the float STL will hold it. From the exact value, which does not depend on what
-// was evaluated before or on the thread, so neighbours round shared points alike.
-Vec3 rounded(const EK::Point_3& p) {
-  auto f = [](const EK::FT& x) { return double(float(CGAL::to_double(CGAL::exact(x)))); };
-  return Vec3(f(p.x()), f(p.y()), f(p.z()));
 }
 
 // Where a part touches itself at a vertex (one position, several vertices), each copy moves a
@@ -355,39 +316,9 @@ std::optional<ExactMesh> exact_region(const TriMesh& region,
                                       const std::vector<std::int32_t>& origin) {
   std::optional<ExactMesh> m = to_exact(region);
   if (!m) return std::nullopt;
-  auto o = m->add_property_map<Face, std::int32_t>("f:origin", kFromSolid).first;
+  const OriginMap o = origin_map(*m, kFromSolid);
   for (Face f : m->faces()) o[f] = origin[f.idx()];
   return m;
-}
-
-enum class Boolean { Intersection, Union, Difference };
-
-// a op b into `out`, whose faces keep the origins of the faces they come from; false when CGAL
-// rejects an operand (self-intersecting) or cannot build the result.
-bool boolean(Boolean op, ExactMesh& a, ExactMesh& b, ExactMesh& out) {
-  OriginVisitor visitor;
-  for (ExactMesh* m : {&a, &b, &out})
-    visitor.origin[m] = m->add_property_map<Face, std::int32_t>("f:origin", kFromSolid).first;
-  const auto np = CGAL::parameters::visitor(visitor).throw_on_self_intersection(true);
-  const auto checked = CGAL::parameters::throw_on_self_intersection(true);
-  bool built = false;
-  try {
-    switch (op) {
-      case Boolean::Intersection:
-        built = PMP::corefine_and_compute_intersection(a, b, out, np, checked);
-        break;
-      case Boolean::Union:
-        built = PMP::corefine_and_compute_union(a, b, out, np, checked);
-        break;
-      case Boolean::Difference:
-        built = PMP::corefine_and_compute_difference(a, b, out, np, checked);
-        break;
-    }
-  } catch (const PMP::Corefinement::Self_intersection_exception&) {
-  }
-  // Where the operands touch at a point the result can pinch there, which a Surface_mesh holds
-  // only as a broken structure (and CGAL then crashes on it).
-  return built && CGAL::is_valid_polygon_mesh(out);
 }
 
 // solid ∩ region, with the origins of the result's faces; nullopt when CGAL rejects an operand
@@ -401,44 +332,11 @@ std::optional<std::pair<TriMesh, std::vector<std::int32_t>>> intersect(const Tri
     return std::nullopt;
   }
   ExactMesh out;
-  if (!boolean(Boolean::Intersection, *a, region, out)) {
+  if (!boolean(Boolean::Intersection, *a, region, out, kFromSolid)) {
     problem = "its region, moved out past the input surface, intersects itself";
     return std::nullopt;
   }
-  auto out_origin = out.add_property_map<Face, std::int32_t>("f:origin", kFromSolid).first;
-  // Points the cut put within a float step of each other become one, and the needle triangles
-  // between them go (in a neighbour too, which rounds the same points). The order CGAL lists
-  // faces and their corners in can follow its threaded search for intersections, so the part
-  // is written in a canonical order: vertices by position, triangles by corners, each from its
-  // lowest corner. That makes it the same on any thread count.
-  std::map<Vec3, std::int32_t, VecLess> at;
-  std::map<ExactMesh::Vertex_index, Vec3> position;
-  for (ExactMesh::Vertex_index v : out.vertices()) {
-    position[v] = rounded(out.point(v));
-    at.emplace(position[v], 0);
-  }
-  TriMesh mesh;
-  for (auto& [p, i] : at) {
-    i = static_cast<std::int32_t>(mesh.vertices.size());
-    mesh.vertices.push_back(p);
-  }
-  std::vector<std::pair<Tri, std::int32_t>> faces;  // with their origin
-  for (Face f : out.faces()) {
-    Tri t{};
-    int k = 0;
-    for (ExactMesh::Vertex_index v : CGAL::vertices_around_face(out.halfedge(f), out))
-      if (k < 3) t[k++] = at.at(position.at(v));
-    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
-    std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
-    faces.emplace_back(t, out_origin[f]);
-  }
-  std::sort(faces.begin(), faces.end());
-  std::vector<std::int32_t> origin;
-  for (const auto& [t, o] : faces) {
-    mesh.triangles.push_back(t);
-    origin.push_back(o);
-  }
-  return std::make_pair(std::move(mesh), std::move(origin));
+  return canonical(out, kFromSolid);
 }
 
 using CutResult = std::pair<TriMesh, std::vector<std::int32_t>>;
@@ -574,11 +472,12 @@ std::optional<ExactMesh> fill_dents(
           exact_region(regions[j].mesh, std::vector<std::int32_t>(regions[j].mesh.triangles.size(),
                                                                   static_cast<std::int32_t>(j)));
       ExactMesh rest;
-      if (!other || !boolean(Boolean::Difference, hull, *other, rest)) return std::nullopt;
+      if (!other || !boolean(Boolean::Difference, hull, *other, rest, kFromSolid))
+        return std::nullopt;
       hull = std::move(rest);
     }
     ExactMesh joined;
-    if (!boolean(Boolean::Union, *grown, hull, joined)) return std::nullopt;
+    if (!boolean(Boolean::Union, *grown, hull, joined, kFromSolid)) return std::nullopt;
     grown = std::move(joined);
   }
   return grown;

@@ -474,7 +474,7 @@ InterfaceSmoothness outer_surface_smoothness(const std::vector<Part>& parts) {
   for (const Part& part : parts) {
     std::vector<Tri> tris;
     for (std::size_t i = 0; i < part.mesh.triangles.size(); ++i)
-      if (i < part.triangle_neighbor.size() && part.triangle_neighbor[i] < 0)
+      if (i < part.triangle_neighbor.size() && part.triangle_neighbor[i] == -1)
         tris.push_back(part.mesh.triangles[i]);
     const std::vector<double> a = neighbour_angles(part.mesh.vertices, tris, total);
     angles.insert(angles.end(), a.begin(), a.end());

@@ -640,6 +640,10 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   }
   d.made_candidates[kept].kept = true;
   AssembledParts stage = std::move(best->stage);
+  // What the label-level repairs leave is carved out; the parts only lose material, so the
+  // assembly order stays.
+  if (best->gap_lines > 0)
+    d.carving = carve_dhf_gaps(stage.parts.parts, kGapLines, opts.access.epsilon_mm);
   const std::size_t chosen = best->repaired_index;
   d.sandwich = std::move(repaired[chosen].repair);
   const LabelingCandidate& candidate = candidates[repaired[chosen].index];

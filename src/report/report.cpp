@@ -27,6 +27,12 @@ std::string part_file(std::int32_t id) {
   return name;
 }
 
+std::string void_file(std::size_t k) {
+  char name[48];
+  std::snprintf(name, sizeof name, "parts/void_%03zu.stl", k);
+  return name;
+}
+
 std::string mold_file(std::int32_t id, const char* half) {
   char name[40];
   std::snprintf(name, sizeof name, "molds/part_%03d_%s.stl", id, half);
@@ -144,6 +150,9 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
     if (static_cast<std::size_t>(p.id) < d.solid_cut.problem.size() &&
         !d.solid_cut.problem[p.id].empty())
       jp["cut_problem"] = d.solid_cut.problem[p.id];
+    double carved = 0.0;
+    for (const CarvedVoid& v : d.carving.voids) carved += v.part == p.id ? v.volume_mm3 : 0.0;
+    jp["carved_mm3"] = carved;
     if (static_cast<std::size_t>(p.id) < d.molds.size()) jp["molds"] = mold_json(d.molds[p.id]);
     parts.push_back(jp);
   }
@@ -197,6 +206,19 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                         {"gap_lines_before", f.gap_lines_before},
                         {"gap_lines_after", f.gap_lines_after}});
   j["dhf_repair"] = fillings;
+  ordered_json voids = ordered_json::array();
+  for (std::size_t k = 0; k < d.carving.voids.size(); ++k)
+    voids.push_back({{"part", d.carving.voids[k].part},
+                     {"mesh", void_file(k)},
+                     {"volume_mm3", d.carving.voids[k].volume_mm3}});
+  ordered_json exchanges = ordered_json::array();
+  for (const GapExchange& e : d.carving.exchanges)
+    exchanges.push_back({{"from", e.from}, {"to", e.to}, {"volume_mm3", e.volume_mm3}});
+  j["carving"] = {{"gap_lines_before", d.carving.gap_lines_before},
+                  {"gap_lines_after", d.carving.gap_lines_after},
+                  {"exchanges", exchanges},
+                  {"voids", voids},
+                  {"refused", d.carving.refused}};
   ordered_json made = ordered_json::array();
   for (const MadeCandidate& m : d.made_candidates)
     made.push_back({{"restart", m.restart},
@@ -271,6 +293,8 @@ void write_output(const std::string& outdir, const std::string& json, const Deco
     fs::create_directories(tmp / "parts", ec);
     if (ec) io_error("cannot create " + tmp.string(), ec);
     for (const Part& p : d.parts) write_stl((tmp / part_file(p.id)).string(), p.mesh);
+    for (std::size_t k = 0; k < d.carving.voids.size(); ++k)
+      write_stl((tmp / void_file(k)).string(), d.carving.voids[k].mesh);
     write_mold_files(tmp.string(), d.molds);
     std::ofstream f(tmp / "decomposition.json", std::ios::binary);
     f << json;

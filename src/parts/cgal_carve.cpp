@@ -1,0 +1,358 @@
+// Carves a convex hull out of a part by exact booleans (see carve_hull()).
+#include <CGAL/convex_hull_3.h>
+
+#include <algorithm>
+#include <array>
+#include <map>
+#include <numeric>
+#include <set>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "carve.h"
+#include "cgal_exact.h"
+#include "dhfcast/mesh.h"
+
+namespace dhfcast::detail {
+
+namespace {
+using namespace exact;
+
+// The hull as tetrahedra fanned from one of its corners, with its bounding box.
+struct Hull {
+  ExactMesh mesh;
+  std::vector<EK::Tetrahedron_3> tets;
+  CGAL::Bbox_3 box;
+
+  template <class Object>
+  bool meets(const Object& object) const {
+    if (!CGAL::do_overlap(object.bbox(), box)) return false;
+    return std::any_of(tets.begin(), tets.end(),
+                       [&](const EK::Tetrahedron_3& t) { return CGAL::do_intersect(object, t); });
+  }
+};
+
+EK::Point_3 exact_point(const Vec3& p) { return EK::Point_3(p.x(), p.y(), p.z()); }
+
+EK::Triangle_3 exact_triangle(const TriMesh& m, const Tri& t) {
+  return EK::Triangle_3(exact_point(m.vertices[t[0]]), exact_point(m.vertices[t[1]]),
+                        exact_point(m.vertices[t[2]]));
+}
+
+bool make_hull(const std::vector<Vec3>& points, Hull& hull) {
+  std::vector<EK::Point_3> exact;
+  for (const Vec3& p : points) exact.push_back(exact_point(p));
+  CGAL::convex_hull_3(exact.begin(), exact.end(), hull.mesh);
+  if (hull.mesh.number_of_faces() < 4 || !CGAL::is_closed(hull.mesh)) return false;
+  const ExactMesh::Vertex_index apex = *hull.mesh.vertices().begin();
+  for (ExactMesh::Vertex_index v : hull.mesh.vertices()) hull.box += hull.mesh.point(v).bbox();
+  for (Face f : hull.mesh.faces()) {
+    std::array<ExactMesh::Vertex_index, 3> c{};
+    int k = 0;
+    for (ExactMesh::Vertex_index v : CGAL::vertices_around_face(hull.mesh.halfedge(f), hull.mesh))
+      if (k < 3) c[k++] = v;
+    if (std::find(c.begin(), c.end(), apex) != c.end()) continue;
+    hull.tets.emplace_back(hull.mesh.point(apex), hull.mesh.point(c[0]), hull.mesh.point(c[1]),
+                           hull.mesh.point(c[2]));
+  }
+  return !hull.tets.empty();
+}
+
+// Whether every directed edge of the mesh has exactly one opposite, and how many pieces
+// (triangles connected through edges) it has.
+bool closed(const TriMesh& m, std::int32_t& pieces) {
+  std::map<std::pair<std::int32_t, std::int32_t>, std::int32_t> edges;  // directed -> triangle
+  for (std::size_t t = 0; t < m.triangles.size(); ++t)
+    for (int k = 0; k < 3; ++k)
+      if (!edges
+               .emplace(std::make_pair(m.triangles[t][k], m.triangles[t][(k + 1) % 3]),
+                        static_cast<std::int32_t>(t))
+               .second)
+        return false;
+  std::vector<std::int32_t> root(m.triangles.size());
+  std::iota(root.begin(), root.end(), 0);
+  auto find = [&](std::int32_t x) {
+    while (root[x] != x) x = root[x] = root[root[x]];
+    return x;
+  };
+  for (const auto& [e, t] : edges) {
+    const auto opposite = edges.find({e.second, e.first});
+    if (opposite == edges.end()) return false;
+    root[find(t)] = find(opposite->second);
+  }
+  pieces = 0;
+  for (std::size_t t = 0; t < root.size(); ++t)
+    pieces += static_cast<std::size_t>(find(static_cast<std::int32_t>(t))) == t;
+  return true;
+}
+
+// Orders triangles given by their corners.
+struct CornersLess {
+  bool operator()(const std::array<Vec3, 3>& a, const std::array<Vec3, 3>& b) const {
+    return std::lexicographical_compare(a.begin(), a.end(), b.begin(), b.end(), VecLess());
+  }
+};
+
+// Appends triangles to a mesh, finding their corners by position.
+struct MeshBuilder {
+  TriMesh mesh;
+  std::vector<std::int32_t> neighbor;
+  std::map<Vec3, std::int32_t, VecLess> at;
+
+  std::int32_t vertex(const Vec3& x) {
+    const auto [it, added] = at.emplace(x, static_cast<std::int32_t>(mesh.vertices.size()));
+    if (added) mesh.vertices.push_back(x);
+    return it->second;
+  }
+  void add(const TriMesh& from, const Tri& t, bool reversed, std::int32_t n) {
+    Tri tri{vertex(from.vertices[t[0]]), vertex(from.vertices[t[1]]), vertex(from.vertices[t[2]])};
+    if (reversed) std::swap(tri[1], tri[2]);
+    mesh.triangles.push_back(tri);
+    neighbor.push_back(n);
+  }
+};
+
+// The triangles of a mesh that face part n, as corner positions from the smallest corner,
+// reversed when asked.
+std::multiset<std::array<Vec3, 3>, CornersLess> facing(const TriMesh& m,
+                                                       const std::vector<std::int32_t>& neighbor,
+                                                       std::int32_t n, bool reversed) {
+  std::multiset<std::array<Vec3, 3>, CornersLess> out;
+  for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+    if (neighbor[t] != n) continue;
+    std::array<Vec3, 3> c{m.vertices[m.triangles[t][0]], m.vertices[m.triangles[t][1]],
+                          m.vertices[m.triangles[t][2]]};
+    if (reversed) std::swap(c[1], c[2]);
+    std::rotate(c.begin(), std::min_element(c.begin(), c.end(), VecLess()), c.end());
+    out.insert(c);
+  }
+  return out;
+}
+
+// Parts p and q once they exchanged material, from the booleans' results (face origins: the
+// part across). The two results can triangulate their new interface differently (CGAL's
+// choices); q then takes p's triangles there (reversed) in place of its own. Refused (the
+// reason in `why`) when a part is empty, not closed once rounded, or falls apart.
+std::optional<CarvedHull> exchanged(const std::vector<Part>& parts, std::int32_t p, std::int32_t q,
+                                    ExactMesh& p_result, ExactMesh& q_result, std::string& why) {
+  auto [p_mesh, p_neighbor] = canonical(p_result, q);
+  auto [q_own, q_own_neighbor] = canonical(q_result, p);
+  MeshBuilder b;
+  if (facing(p_mesh, p_neighbor, q, false) == facing(q_own, q_own_neighbor, p, true)) {
+    b.mesh = std::move(q_own);
+    b.neighbor = std::move(q_own_neighbor);
+  } else {
+    for (std::size_t t = 0; t < q_own.triangles.size(); ++t)
+      if (q_own_neighbor[t] != p) b.add(q_own, q_own.triangles[t], false, q_own_neighbor[t]);
+    for (std::size_t t = 0; t < p_mesh.triangles.size(); ++t)
+      if (p_neighbor[t] == q) b.add(p_mesh, p_mesh.triangles[t], true, p);
+  }
+  std::int32_t p_pieces = 0, q_pieces = 0;
+  if (p_mesh.triangles.empty() || b.mesh.triangles.empty() || !closed(p_mesh, p_pieces) ||
+      !closed(b.mesh, q_pieces)) {
+    why = "a part is empty or not closed once rounded";
+    return std::nullopt;
+  }
+  if (p_pieces != 1 || q_pieces != 1) {
+    why = "a part would fall apart";
+    return std::nullopt;
+  }
+  CarvedHull out;
+  for (auto [k, mesh, neighbor] :
+       {std::tuple{p, &p_mesh, &p_neighbor}, std::tuple{q, &b.mesh, &b.neighbor}}) {
+    Part changed = parts[k];
+    changed.mesh = std::move(*mesh);
+    changed.triangle_neighbor = std::move(*neighbor);
+    changed.volume_mm3 = signed_volume(changed.mesh);
+    out.changed.emplace_back(k, std::move(changed));
+  }
+  return out;
+}
+
+// Part k as an exact mesh whose faces carry the part across them ("f:origin").
+std::optional<ExactMesh> exact_part(const Part& part) {
+  std::optional<ExactMesh> m = to_exact(part.mesh);
+  if (!m) return std::nullopt;
+  const OriginMap origin = origin_map(*m, kCarvedVoid);
+  for (Face f : m->faces()) origin[f] = part.triangle_neighbor[f.idx()];
+  return m;
+}
+
+}  // namespace
+
+std::optional<CarvedHull> carve_hull(const std::vector<Part>& parts, std::int32_t p,
+                                     const std::vector<Vec3>& points, std::string& why) {
+  const Part& part = parts[p];
+  const TriMesh& m = part.mesh;
+  Hull hull;
+  if (!make_hull(points, hull)) {
+    why = "its hull is flat";
+    return std::nullopt;
+  }
+  // The outer surface stays as it is, and so do the curves where p meets two other parts (the
+  // neighbours' triangles there would need new corners on the curve).
+  std::map<std::pair<std::int32_t, std::int32_t>, std::int32_t> edge_neighbor;
+  std::set<std::pair<std::int32_t, std::int32_t>> junctions;
+  for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+    const std::int32_t n = part.triangle_neighbor[t];
+    if (n < 0 && hull.meets(exact_triangle(m, m.triangles[t]))) {
+      why = "its hull would cut the part's outer surface";
+      return std::nullopt;
+    }
+    for (int k = 0; k < 3; ++k) {
+      const std::pair e = std::minmax(m.triangles[t][k], m.triangles[t][(k + 1) % 3]);
+      const auto [it, added] = edge_neighbor.emplace(e, n);
+      if (!added && it->second != n) junctions.insert(e);
+    }
+  }
+  for (const auto& [a, b] : junctions)
+    if (hull.meets(EK::Segment_3(exact_point(m.vertices[a]), exact_point(m.vertices[b])))) {
+      why = "its hull would cut a curve where the part meets two others";
+      return std::nullopt;
+    }
+
+  std::optional<ExactMesh> whole = exact_part(part);
+  if (!whole) {
+    why = "the part is not a 2-manifold surface";
+    return std::nullopt;
+  }
+  ExactMesh whole_copy = *whole, hull_copy = hull.mesh, rest, removed;
+  if (!boolean(Boolean::Difference, *whole, hull.mesh, rest, kCarvedVoid) ||
+      !boolean(Boolean::Intersection, whole_copy, hull_copy, removed, kCarvedVoid)) {
+    why = "CGAL rejects the cut";
+    return std::nullopt;
+  }
+  auto [rest_mesh, rest_neighbor] = canonical(rest, kCarvedVoid);
+  auto [hole_mesh, hole_neighbor] = canonical(removed, kCarvedVoid);
+  std::int32_t pieces = 0, hole_pieces = 0;
+  if (hole_mesh.triangles.empty() || rest_mesh.triangles.empty()) {
+    why = "its hull holds none of the part, or all of it";
+    return std::nullopt;
+  }
+  if (!closed(rest_mesh, pieces) || !closed(hole_mesh, hole_pieces)) {
+    why = "the cut is not closed once rounded";
+    return std::nullopt;
+  }
+  if (pieces != 1) {
+    why = "the part would fall apart";
+    return std::nullopt;
+  }
+
+  CarvedHull out;
+  Part carved = part;
+  carved.mesh = std::move(rest_mesh);
+  carved.triangle_neighbor = std::move(rest_neighbor);
+  carved.volume_mm3 = signed_volume(carved.mesh);
+  // Each neighbour across the material removed swaps its triangles facing p for p's new ones
+  // (facing it) and the removed material's (facing the void).
+  std::set<std::int32_t> neighbours;
+  for (std::int32_t n : hole_neighbor)
+    if (n >= 0) neighbours.insert(n);
+  for (std::int32_t q : neighbours) {
+    const Part& other = parts[q];
+    MeshBuilder b;
+    for (std::size_t t = 0; t < other.mesh.triangles.size(); ++t)
+      if (other.triangle_neighbor[t] != p)
+        b.add(other.mesh, other.mesh.triangles[t], false, other.triangle_neighbor[t]);
+    for (std::size_t t = 0; t < carved.mesh.triangles.size(); ++t)
+      if (carved.triangle_neighbor[t] == q) b.add(carved.mesh, carved.mesh.triangles[t], true, p);
+    for (std::size_t t = 0; t < hole_mesh.triangles.size(); ++t)
+      if (hole_neighbor[t] == q) b.add(hole_mesh, hole_mesh.triangles[t], true, kCarvedVoid);
+    std::int32_t q_pieces = 0;
+    if (!closed(b.mesh, q_pieces)) {
+      why = "part " + std::to_string(q) + " across it would not be closed";
+      return std::nullopt;
+    }
+    Part changed = other;
+    changed.mesh = std::move(b.mesh);
+    changed.triangle_neighbor = std::move(b.neighbor);
+    changed.volume_mm3 = signed_volume(changed.mesh);
+    out.changed.emplace_back(q, std::move(changed));
+  }
+  out.changed.insert(out.changed.begin(), {p, std::move(carved)});
+  out.hole.part = p;
+  out.hole.volume_mm3 = signed_volume(hole_mesh);
+  out.hole.mesh = std::move(hole_mesh);
+  return out;
+}
+
+std::optional<CarvedHull> fill_hull(const std::vector<Part>& parts, std::int32_t p, std::int32_t q,
+                                    const std::vector<Vec3>& points, std::string& why) {
+  Hull hull;
+  if (!make_hull(points, hull)) {
+    why = "its hull is flat";
+    return std::nullopt;
+  }
+  // The hull must lie inside p and q, away from the outer surface.
+  for (std::int32_t k = 0; k < static_cast<std::int32_t>(parts.size()); ++k) {
+    const Part& part = parts[k];
+    const TriMesh& m = part.mesh;
+    for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+      if ((k == p || k == q) && part.triangle_neighbor[t] >= 0) continue;
+      if (hull.meets(exact_triangle(m, m.triangles[t]))) {
+        why = k == p || k == q ? "its hull would reach the outer surface"
+                               : "its hull would reach part " + std::to_string(k);
+        return std::nullopt;
+      }
+    }
+  }
+  std::optional<ExactMesh> a = exact_part(parts[p]), b = exact_part(parts[q]);
+  if (!a || !b) {
+    why = "a part is not a 2-manifold surface";
+    return std::nullopt;
+  }
+  ExactMesh hull_for_p = hull.mesh, hull_for_q = hull.mesh, grown, shrunk;
+  origin_map(hull_for_p, q);  // the hull's faces that p gains face q, and the other way
+  origin_map(hull_for_q, p);
+  if (!boolean(Boolean::Union, *a, hull_for_p, grown, q) ||
+      !boolean(Boolean::Difference, *b, hull_for_q, shrunk, p)) {
+    why = "CGAL rejects the fill";
+    return std::nullopt;
+  }
+  return exchanged(parts, p, q, grown, shrunk, why);
+}
+
+std::optional<CarvedHull> yield_hull(const std::vector<Part>& parts, std::int32_t p, std::int32_t q,
+                                     const std::vector<Vec3>& points, std::string& why) {
+  Hull hull;
+  if (!make_hull(points, hull)) {
+    why = "its hull is flat";
+    return std::nullopt;
+  }
+  // q takes p's faces inside the hull: their neighbours must be q or the outside.
+  for (std::int32_t k = 0; k < static_cast<std::int32_t>(parts.size()); ++k) {
+    if (k == p || k == q) continue;
+    const TriMesh& m = parts[k].mesh;
+    for (const Tri& tri : m.triangles)
+      if (hull.meets(exact_triangle(m, tri))) {
+        why = "its hull would reach part " + std::to_string(k);
+        return std::nullopt;
+      }
+  }
+  for (std::size_t t = 0; t < parts[p].mesh.triangles.size(); ++t) {
+    if (parts[p].triangle_neighbor[t] == kCarvedVoid &&
+        hull.meets(exact_triangle(parts[p].mesh, parts[p].mesh.triangles[t]))) {
+      why = "its hull would reach a carved void";
+      return std::nullopt;
+    }
+  }
+  std::optional<ExactMesh> a = exact_part(parts[p]), a_copy = exact_part(parts[p]),
+                           b = exact_part(parts[q]);
+  if (!a || !b) {
+    why = "a part is not a 2-manifold surface";
+    return std::nullopt;
+  }
+  ExactMesh hull_for_p = hull.mesh, hull_for_piece = hull.mesh, kept, piece, grown;
+  origin_map(hull_for_p, q);  // p's new faces face q, the piece's face p
+  origin_map(hull_for_piece, p);
+  if (!boolean(Boolean::Difference, *a, hull_for_p, kept, q) ||
+      !boolean(Boolean::Intersection, *a_copy, hull_for_piece, piece, p) ||
+      !boolean(Boolean::Union, *b, piece, grown, p)) {
+    why = "CGAL rejects the exchange";
+    return std::nullopt;
+  }
+  return exchanged(parts, p, q, kept, grown, why);
+}
+
+}  // namespace dhfcast::detail

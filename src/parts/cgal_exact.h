@@ -1,0 +1,134 @@
+// Private to the parts stage: exact CGAL meshes, and booleans whose result faces remember which
+// operand face they come from ("f:origin"). Included by the stage's CGAL files only.
+#pragma once
+
+#include <CGAL/Exact_predicates_exact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/corefinement.h>
+#include <CGAL/Surface_mesh.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include "dhfcast/types.h"
+
+namespace dhfcast::exact {
+
+namespace PMP = CGAL::Polygon_mesh_processing;
+using EK = CGAL::Exact_predicates_exact_constructions_kernel;
+using ExactMesh = CGAL::Surface_mesh<EK::Point_3>;
+using Face = ExactMesh::Face_index;
+using OriginMap = ExactMesh::Property_map<Face, std::int32_t>;
+
+// Vertex positions as map keys: shared vertices of neighbouring parts have equal coordinates.
+struct VecLess {
+  bool operator()(const Vec3& a, const Vec3& b) const {
+    return std::lexicographical_compare(a.data(), a.data() + 3, b.data(), b.data() + 3);
+  }
+};
+
+inline std::optional<ExactMesh> to_exact(const TriMesh& m) {
+  ExactMesh out;
+  for (const Vec3& p : m.vertices) out.add_vertex(EK::Point_3(p.x(), p.y(), p.z()));
+  for (const Tri& t : m.triangles)
+    if (out.add_face(ExactMesh::Vertex_index(t[0]), ExactMesh::Vertex_index(t[1]),
+                     ExactMesh::Vertex_index(t[2])) == ExactMesh::null_face())
+      return std::nullopt;
+  return out;
+}
+
+// The mesh's "f:origin" map (made, with `fallback` for every face, when it has none).
+inline OriginMap origin_map(ExactMesh& m, std::int32_t fallback) {
+  return m.add_property_map<Face, std::int32_t>("f:origin", fallback).first;
+}
+
+// Keeps, for every face of the result, the origin of the face it was split or copied from.
+struct OriginVisitor : PMP::Corefinement::Default_visitor<ExactMesh> {
+  std::map<const ExactMesh*, OriginMap> origin;
+  std::int32_t current = 0;
+  void before_subface_creations(Face f, ExactMesh& tm) { current = origin.at(&tm)[f]; }
+  void after_subface_created(Face f, ExactMesh& tm) { origin.at(&tm)[f] = current; }
+  void after_face_copy(Face from, const ExactMesh& src, Face to, ExactMesh& dst) {
+    origin.at(&dst)[to] = origin.at(&src)[from];
+  }
+};
+
+enum class Boolean { Intersection, Union, Difference };
+
+// a op b into `out`, whose faces keep the origins of the faces they come from (faces of an
+// operand without an origin map get `fallback`); false when CGAL rejects an operand
+// (self-intersecting) or cannot build the result.
+inline bool boolean(Boolean op, ExactMesh& a, ExactMesh& b, ExactMesh& out, std::int32_t fallback) {
+  OriginVisitor visitor;
+  for (ExactMesh* m : {&a, &b, &out}) visitor.origin[m] = origin_map(*m, fallback);
+  const auto np = CGAL::parameters::visitor(visitor).throw_on_self_intersection(true);
+  const auto checked = CGAL::parameters::throw_on_self_intersection(true);
+  bool built = false;
+  try {
+    switch (op) {
+      case Boolean::Intersection:
+        built = PMP::corefine_and_compute_intersection(a, b, out, np, checked);
+        break;
+      case Boolean::Union:
+        built = PMP::corefine_and_compute_union(a, b, out, np, checked);
+        break;
+      case Boolean::Difference:
+        built = PMP::corefine_and_compute_difference(a, b, out, np, checked);
+        break;
+    }
+  } catch (const PMP::Corefinement::Self_intersection_exception&) {
+  }
+  // Where the operands touch at a point the result can pinch there, which a Surface_mesh holds
+  // only as a broken structure (and CGAL then crashes on it).
+  return built && CGAL::is_valid_polygon_mesh(out);
+}
+
+// The point as the float STL will hold it. From the exact value, which does not depend on what
+// was evaluated before or on the thread, so neighbours round shared points alike.
+inline Vec3 rounded(const EK::Point_3& p) {
+  auto f = [](const EK::FT& x) { return double(float(CGAL::to_double(CGAL::exact(x)))); };
+  return Vec3(f(p.x()), f(p.y()), f(p.z()));
+}
+
+// The mesh as a TriMesh, with each triangle's origin. Points within a float step of each other
+// become one, and the needle triangles between them go (in a neighbour too, which rounds the
+// same points). The order CGAL lists faces and their corners in can follow its threaded search
+// for intersections, so the result is in a canonical order: vertices by position, triangles by
+// corners, each from its lowest corner. That makes it the same on any thread count.
+inline std::pair<TriMesh, std::vector<std::int32_t>> canonical(ExactMesh& m,
+                                                               std::int32_t fallback) {
+  const OriginMap origin_of = origin_map(m, fallback);
+  std::map<Vec3, std::int32_t, VecLess> at;
+  std::map<ExactMesh::Vertex_index, Vec3> position;
+  for (ExactMesh::Vertex_index v : m.vertices()) {
+    position[v] = rounded(m.point(v));
+    at.emplace(position[v], 0);
+  }
+  TriMesh mesh;
+  for (auto& [p, i] : at) {
+    i = static_cast<std::int32_t>(mesh.vertices.size());
+    mesh.vertices.push_back(p);
+  }
+  std::vector<std::pair<Tri, std::int32_t>> faces;  // with their origin
+  for (Face f : m.faces()) {
+    Tri t{};
+    int k = 0;
+    for (ExactMesh::Vertex_index v : CGAL::vertices_around_face(m.halfedge(f), m))
+      if (k < 3) t[k++] = at.at(position.at(v));
+    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
+    std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
+    faces.emplace_back(t, origin_of[f]);
+  }
+  std::sort(faces.begin(), faces.end());
+  std::vector<std::int32_t> origin;
+  for (const auto& [t, o] : faces) {
+    mesh.triangles.push_back(t);
+    origin.push_back(o);
+  }
+  return {std::move(mesh), std::move(origin)};
+}
+
+}  // namespace dhfcast::exact
