@@ -237,6 +237,9 @@ int main(int argc, char** argv) {
                 "the parts from the exact input solid");
   bool no_molds = false;
   dec->add_flag("--no-molds", no_molds, "Do not build the mold halves");
+  dec->add_flag("--carve", o.carve,
+                "Mend the lines that still meet a part twice on the final meshes: fill, yield, "
+                "or carve a void (see README; the result can differ from run to run)");
   auto add_mold_options = [](CLI::App* cmd, MoldOptions& m) {
     cmd->add_option("--wall", m.wall_mm, "Mold wall thickness around the cavity, mm")
         ->capture_default_str();

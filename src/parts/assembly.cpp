@@ -10,6 +10,7 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "carve.h"
@@ -148,8 +149,11 @@ class PartScene {
       if (t_mm > 0.0)
         out.push_back({t_mm, part, along > 0.0, static_cast<std::int32_t>(std::uint32_t(h))});
     }
+    // Embree reports the hits in an order that depends on its threads: ties are broken to the
+    // end, so equal crossings (an edge hit) come in one order on any thread count.
     std::sort(out.begin(), out.end(), [](const Crossing& a, const Crossing& b) {
-      return a.t_mm != b.t_mm ? a.t_mm < b.t_mm : a.part < b.part;
+      return std::tie(a.t_mm, a.part, a.exits, a.triangle) <
+             std::tie(b.t_mm, b.part, b.exits, b.triangle);
     });
   }
 

@@ -179,6 +179,31 @@ std::optional<ExactMesh> exact_part(const Part& part) {
   return m;
 }
 
+// The hull of `points` for parts p and q to exchange material in; false (the reason in `why`)
+// when it is flat, or meets a third part or a carved void, or (with outer) the outer surface.
+bool exchange_hull(const std::vector<Part>& parts, std::int32_t p, std::int32_t q,
+                   const std::vector<Vec3>& points, bool outer, Hull& hull, std::string& why) {
+  if (!make_hull(points, hull)) {
+    why = "its hull is flat";
+    return false;
+  }
+  for (std::int32_t k = 0; k < static_cast<std::int32_t>(parts.size()); ++k) {
+    const Part& part = parts[k];
+    for (std::size_t t = 0; t < part.mesh.triangles.size(); ++t) {
+      const std::int32_t n = part.triangle_neighbor[t];
+      const bool ours = k == p || k == q;
+      if (ours && (n >= 0 || (n == -1 && !outer))) continue;
+      if (hull.meets(exact_triangle(part.mesh, part.mesh.triangles[t]))) {
+        why = !ours     ? "its hull would reach part " + std::to_string(k)
+              : n == -1 ? "its hull would reach the outer surface"
+                        : "its hull would reach a carved void";
+        return false;
+      }
+    }
+  }
+  return true;
+}
+
 }  // namespace
 
 std::optional<CarvedHull> carve_hull(const std::vector<Part>& parts, std::int32_t p,
@@ -280,23 +305,8 @@ std::optional<CarvedHull> carve_hull(const std::vector<Part>& parts, std::int32_
 std::optional<CarvedHull> fill_hull(const std::vector<Part>& parts, std::int32_t p, std::int32_t q,
                                     const std::vector<Vec3>& points, std::string& why) {
   Hull hull;
-  if (!make_hull(points, hull)) {
-    why = "its hull is flat";
-    return std::nullopt;
-  }
   // The hull must lie inside p and q, away from the outer surface.
-  for (std::int32_t k = 0; k < static_cast<std::int32_t>(parts.size()); ++k) {
-    const Part& part = parts[k];
-    const TriMesh& m = part.mesh;
-    for (std::size_t t = 0; t < m.triangles.size(); ++t) {
-      if ((k == p || k == q) && part.triangle_neighbor[t] >= 0) continue;
-      if (hull.meets(exact_triangle(m, m.triangles[t]))) {
-        why = k == p || k == q ? "its hull would reach the outer surface"
-                               : "its hull would reach part " + std::to_string(k);
-        return std::nullopt;
-      }
-    }
-  }
+  if (!exchange_hull(parts, p, q, points, true, hull, why)) return std::nullopt;
   std::optional<ExactMesh> a = exact_part(parts[p]), b = exact_part(parts[q]);
   if (!a || !b) {
     why = "a part is not a 2-manifold surface";
@@ -316,27 +326,8 @@ std::optional<CarvedHull> fill_hull(const std::vector<Part>& parts, std::int32_t
 std::optional<CarvedHull> yield_hull(const std::vector<Part>& parts, std::int32_t p, std::int32_t q,
                                      const std::vector<Vec3>& points, std::string& why) {
   Hull hull;
-  if (!make_hull(points, hull)) {
-    why = "its hull is flat";
-    return std::nullopt;
-  }
   // q takes p's faces inside the hull: their neighbours must be q or the outside.
-  for (std::int32_t k = 0; k < static_cast<std::int32_t>(parts.size()); ++k) {
-    if (k == p || k == q) continue;
-    const TriMesh& m = parts[k].mesh;
-    for (const Tri& tri : m.triangles)
-      if (hull.meets(exact_triangle(m, tri))) {
-        why = "its hull would reach part " + std::to_string(k);
-        return std::nullopt;
-      }
-  }
-  for (std::size_t t = 0; t < parts[p].mesh.triangles.size(); ++t) {
-    if (parts[p].triangle_neighbor[t] == kCarvedVoid &&
-        hull.meets(exact_triangle(parts[p].mesh, parts[p].mesh.triangles[t]))) {
-      why = "its hull would reach a carved void";
-      return std::nullopt;
-    }
-  }
+  if (!exchange_hull(parts, p, q, points, false, hull, why)) return std::nullopt;
   std::optional<ExactMesh> a = exact_part(parts[p]), a_copy = exact_part(parts[p]),
                            b = exact_part(parts[q]);
   if (!a || !b) {

@@ -642,7 +642,7 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   AssembledParts stage = std::move(best->stage);
   // What the label-level repairs leave is carved out; the parts only lose material, so the
   // assembly order stays.
-  if (best->gap_lines > 0)
+  if (opts.carve && best->gap_lines > 0)
     d.carving = carve_dhf_gaps(stage.parts.parts, kGapLines, opts.access.epsilon_mm);
   const std::size_t chosen = best->repaired_index;
   d.sandwich = std::move(repaired[chosen].repair);

@@ -128,7 +128,8 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                      {"seed", opts.segment.seed},
                      {"target_tets", opts.tets.target_tets},
                      {"facet_distance_mm", opts.tets.facet_distance_mm},
-                     {"exact_outer_surface", opts.exact_outer_surface}};
+                     {"exact_outer_surface", opts.exact_outer_surface},
+                     {"carve", opts.carve}};
   if (opts.make_molds) j["parameters"]["molds"] = mold_parameters_json(opts.molds);
   j["tetrahedra"] = d.tets.tets.size();
   j["tet_volume_mm3"] = total_volume(d.tets);
