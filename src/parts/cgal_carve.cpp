@@ -1,4 +1,5 @@
-// Carves a convex hull out of a part by exact booleans (see carve_hull()).
+// Exact booleans that mend a part's gaps: carving a convex hull out of it, or exchanging the
+// material in a hull with a neighbour (see carve.h).
 #include <CGAL/convex_hull_3.h>
 
 #include <algorithm>
