@@ -707,11 +707,10 @@ CarveLines carve_lines(const std::vector<Part>& parts, std::int32_t p, std::int6
                   std::abs(c.t_mm - outer_edge) <= 1e-9 * (1.0 + std::abs(outer_edge)))
                 across = beyond;
           }
-          const double edge = inner_edge;
           if (across >= 0) {
             line.yield = yield_first
                              ? std::make_pair(at(stretches.front().begin - epsilon_mm), line.gap)
-                             : std::make_pair(at(0.5 * (stretches[last - 1].end + edge)),
+                             : std::make_pair(at(0.5 * (stretches[last - 1].end + inner_edge)),
                                               at(stretches.back().end + epsilon_mm));
             line.yield_to = across;
           }

@@ -112,6 +112,18 @@ struct MeshBuilder {
     mesh.triangles.push_back(tri);
     neighbor.push_back(n);
   }
+  // from's triangles that do not face part `skip`, as they are.
+  void keep_except(const TriMesh& from, const std::vector<std::int32_t>& from_neighbor,
+                   std::int32_t skip) {
+    for (std::size_t t = 0; t < from.triangles.size(); ++t)
+      if (from_neighbor[t] != skip) add(from, from.triangles[t], false, from_neighbor[t]);
+  }
+  // from's triangles that face part `q`, reversed, facing `n` instead.
+  void take_facing(const TriMesh& from, const std::vector<std::int32_t>& from_neighbor,
+                   std::int32_t q, std::int32_t n) {
+    for (std::size_t t = 0; t < from.triangles.size(); ++t)
+      if (from_neighbor[t] == q) add(from, from.triangles[t], true, n);
+  }
 };
 
 // The triangles of a mesh that face part n, as corner positions from the smallest corner,
@@ -144,10 +156,8 @@ std::optional<CarvedHull> exchanged(const std::vector<Part>& parts, std::int32_t
     b.mesh = std::move(q_own);
     b.neighbor = std::move(q_own_neighbor);
   } else {
-    for (std::size_t t = 0; t < q_own.triangles.size(); ++t)
-      if (q_own_neighbor[t] != p) b.add(q_own, q_own.triangles[t], false, q_own_neighbor[t]);
-    for (std::size_t t = 0; t < p_mesh.triangles.size(); ++t)
-      if (p_neighbor[t] == q) b.add(p_mesh, p_mesh.triangles[t], true, p);
+    b.keep_except(q_own, q_own_neighbor, p);
+    b.take_facing(p_mesh, p_neighbor, q, p);
   }
   std::int32_t p_pieces = 0, q_pieces = 0;
   if (p_mesh.triangles.empty() || b.mesh.triangles.empty() || !closed(p_mesh, p_pieces) ||
@@ -278,13 +288,9 @@ std::optional<CarvedHull> carve_hull(const std::vector<Part>& parts, std::int32_
   for (std::int32_t q : neighbours) {
     const Part& other = parts[q];
     MeshBuilder b;
-    for (std::size_t t = 0; t < other.mesh.triangles.size(); ++t)
-      if (other.triangle_neighbor[t] != p)
-        b.add(other.mesh, other.mesh.triangles[t], false, other.triangle_neighbor[t]);
-    for (std::size_t t = 0; t < carved.mesh.triangles.size(); ++t)
-      if (carved.triangle_neighbor[t] == q) b.add(carved.mesh, carved.mesh.triangles[t], true, p);
-    for (std::size_t t = 0; t < hole_mesh.triangles.size(); ++t)
-      if (hole_neighbor[t] == q) b.add(hole_mesh, hole_mesh.triangles[t], true, kCarvedVoid);
+    b.keep_except(other.mesh, other.triangle_neighbor, p);
+    b.take_facing(carved.mesh, carved.triangle_neighbor, q, p);
+    b.take_facing(hole_mesh, hole_neighbor, q, kCarvedVoid);
     std::int32_t q_pieces = 0;
     if (!closed(b.mesh, q_pieces)) {
       why = "part " + std::to_string(q) + " across it would not be closed";
