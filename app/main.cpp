@@ -237,9 +237,10 @@ int main(int argc, char** argv) {
                 "the parts from the exact input solid");
   bool no_molds = false;
   dec->add_flag("--no-molds", no_molds, "Do not build the mold halves");
-  dec->add_flag("--carve", o.carve,
-                "Mend the lines that still meet a part twice on the final meshes: fill, yield, "
-                "or carve a void (see README; the result can differ from run to run)");
+  bool no_carve = false;
+  dec->add_flag("--no-carve", no_carve,
+                "Do not mend the lines that still meet a part twice on the final meshes (by "
+                "filling, yielding, or carving a void; see README)");
   auto add_mold_options = [](CLI::App* cmd, MoldOptions& m) {
     cmd->add_option("--wall", m.wall_mm, "Mold wall thickness around the cavity, mm")
         ->capture_default_str();
@@ -330,6 +331,7 @@ int main(int argc, char** argv) {
       o.tets.seed = o.segment.seed;
       o.make_molds = !no_molds;
       o.exact_outer_surface = !tet_surface;
+      o.carve = !no_carve;
       return run_decompose(cli);
     }
     if (mld->parsed()) return run_molds(mold_outdir, mold_opts, mold_threads, mold_quiet);

@@ -11,11 +11,14 @@
 #include <functional>
 #include <map>
 #include <numeric>
+#include <optional>
+#include <random>
 #include <set>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "carve.h"
 #include "dhfcast/error.h"
 #include "dhfcast/mesh.h"
 #include "dhfcast/tets.h"
@@ -1699,8 +1702,11 @@ TEST(CarveDhfGaps, TheGapUnderATongueIsFilledByThePart) {
   EXPECT_EQ(carving.gap_lines_after, 0);
   for (std::int32_t k : {p, q})
     EXPECT_TRUE(dhf_gaps(parts, 4 * kTongueLines, kTolerance_mm)[k].empty());
-  // Filled inside the solid: the outer surface is the same triangles.
-  for (std::int32_t k : {p, q}) EXPECT_EQ(facing(parts[k], -1), facing(before[k], -1));
+  // Filled inside the solid: the outer surface is the same triangles, and no wall faces a void.
+  for (std::int32_t k : {p, q}) {
+    EXPECT_EQ(facing(parts[k], -1), facing(before[k], -1));
+    EXPECT_TRUE(facing(parts[k], kCarvedVoid).empty());
+  }
   expect_sound(before, parts, carving);
 }
 
@@ -1740,6 +1746,43 @@ TEST(CarveDhfGaps, ATongueInsideTheNeighbourIsCarvedIntoAVoidAndTheOuterSurfaceS
   for (const Tri& t : hole.mesh.triangles) hole_triangles.insert(canonical(hole.mesh, t, false));
   EXPECT_EQ(hole_triangles, walls);
   expect_sound(before, parts, carving);
+}
+
+// Every triangle of a part with the part across it, by corner positions.
+std::multiset<std::pair<std::array<double, 9>, std::int32_t>> surface(const Part& part) {
+  std::multiset<std::pair<std::array<double, 9>, std::int32_t>> out;
+  for (std::size_t t = 0; t < part.mesh.triangles.size(); ++t)
+    out.emplace(canonical(part.mesh, part.mesh.triangles[t], false), part.triangle_neighbor[t]);
+  return out;
+}
+
+// CGAL triangulates a facet with co-circular corners (the hull's rectangles here, or a square
+// a boolean splits) by the order it meets them in, which can follow memory addresses that
+// differ from run to run. The parts made must not: here the same hull, its points listed in
+// two orders, fills the same tongue.
+TEST(CarveDhfGaps, AHullGivesTheSamePartsWhateverOrderItsPointsComeIn) {
+  const std::vector<Part> parts = tongue_parts();
+  const std::int32_t p = parts[0].direction_index == 0 ? 0 : 1, q = 1 - p;
+  // A lattice over the box under the tongue (Q's), reaching into P's floor and tongue.
+  std::vector<Vec3> points;
+  for (double x : {10.5, 17.0, 23.0, 29.5})
+    for (double y : {10.5, 20.0, 30.0, 39.5})
+      for (double z : {9.5, 15.0, 20.5}) points.emplace_back(x, y, z);
+  std::vector<Vec3> shuffled = points;
+  std::mt19937 random(7);
+  std::shuffle(shuffled.begin(), shuffled.end(), random);
+  std::string why;
+  const std::optional<detail::CarvedHull> filled = detail::fill_hull(parts, p, q, points, why);
+  ASSERT_TRUE(filled) << why;
+  for (int order = 0; order < 4; ++order) {
+    std::shuffle(shuffled.begin(), shuffled.end(), random);
+    const std::optional<detail::CarvedHull> again = detail::fill_hull(parts, p, q, shuffled, why);
+    ASSERT_TRUE(again) << why;
+    ASSERT_EQ(again->changed.size(), filled->changed.size());
+    for (std::size_t k = 0; k < filled->changed.size(); ++k)
+      EXPECT_EQ(surface(again->changed[k].second), surface(filled->changed[k].second))
+          << "part " << filled->changed[k].first << ", order " << order;
+  }
 }
 
 TEST(CarveDhfGaps, JawsOnTheOuterSurfaceAreNotCarvedButOneGoesToThePartBetweenThem) {

@@ -31,9 +31,7 @@ struct DecomposeOptions {
   // input surface rather than the tet mesh's boundary.
   bool exact_outer_surface = true;
   // Mend the gap lines the label-level repairs leave on the final meshes (carve_dhf_gaps()).
-  // Off by default: CGAL's booleans can triangulate alike inputs differently from one run to
-  // the next (they order work by memory address), so the parts can then depend on the run.
-  bool carve = false;
+  bool carve = true;
   bool make_molds = true;  // build each part's two-piece mold (molds.epsilon_mm is taken from
                            // access.epsilon_mm)
   MoldOptions molds;

@@ -1,5 +1,9 @@
 // Exact booleans that mend a part's gaps: carving a convex hull out of it, or exchanging the
 // material in a hull with a neighbour (see carve.h).
+#include <CGAL/Constrained_Delaunay_triangulation_2.h>
+#include <CGAL/Projection_traits_3.h>
+#include <CGAL/Triangulation_face_base_with_info_2.h>
+#include <CGAL/Triangulation_vertex_base_with_info_2.h>
 #include <CGAL/convex_hull_3.h>
 
 #include <algorithm>
@@ -19,6 +23,131 @@ namespace dhfcast::detail {
 
 namespace {
 using namespace exact;
+
+// A constrained Delaunay triangulation in the plane of a face, corners numbered.
+using PlaneTraits = CGAL::Projection_traits_3<EK>;
+using Cdt = CGAL::Constrained_Delaunay_triangulation_2<
+    PlaneTraits,
+    CGAL::Triangulation_data_structure_2<
+        CGAL::Triangulation_vertex_base_with_info_2<std::int32_t, PlaneTraits>,
+        CGAL::Triangulation_face_base_with_info_2<
+            int, PlaneTraits, CGAL::Constrained_triangulation_face_base_2<PlaneTraits>>>,
+    CGAL::No_constraint_intersection_requiring_constructions_tag>;
+
+// The pieces of one split face (`faces`, corners numbered by `index`) triangulated again from
+// their corners and their outline alone, inserted in a fixed order: the same pieces whatever
+// order the boolean made them in. False when that does not give as many triangles.
+bool retriangulate(const ExactMesh& m, const std::vector<Face>& faces, const SplitMap& split,
+                   const std::vector<std::int32_t>& index,
+                   std::vector<std::array<std::int32_t, 3>>& out) {
+  std::map<std::int32_t, ExactMesh::Vertex_index> corners;
+  std::set<std::pair<std::int32_t, std::int32_t>> outline;
+  const std::int32_t group = split[faces.front()];
+  for (Face f : faces)
+    for (auto h : CGAL::halfedges_around_face(m.halfedge(f), m)) {
+      const std::int32_t a = index[m.source(h).idx()], b = index[m.target(h).idx()];
+      corners.emplace(a, m.source(h));
+      const Face across = m.face(m.opposite(h));
+      if (across == ExactMesh::null_face() || split[across] != group)
+        outline.insert(std::minmax(a, b));
+    }
+  const auto first = m.halfedge(faces.front());
+  const EK::Vector_3 normal = CGAL::normal(m.point(m.source(first)), m.point(m.target(first)),
+                                           m.point(m.target(m.next(first))));
+  Cdt cdt{PlaneTraits(normal)};
+  std::map<std::int32_t, Cdt::Vertex_handle> at;
+  try {
+    for (const auto& [i, v] : corners) {
+      at[i] = cdt.insert(m.point(v));
+      at[i]->info() = i;
+    }
+    for (const auto& [a, b] : outline) cdt.insert_constraint(at.at(a), at.at(b));
+  } catch (const std::exception&) {
+    return false;
+  }
+  if (cdt.number_of_vertices() != corners.size()) return false;
+  // Inside: behind an odd number of outline edges from the infinite face.
+  for (auto f = cdt.all_faces_begin(); f != cdt.all_faces_end(); ++f) f->info() = -1;
+  std::vector<std::pair<Cdt::Face_handle, int>> todo{{cdt.infinite_face(), 0}};
+  while (!todo.empty()) {
+    auto [f, level] = todo.back();
+    todo.pop_back();
+    if (f->info() != -1) continue;
+    f->info() = level;
+    for (int k = 0; k < 3; ++k) {
+      const Cdt::Face_handle next = f->neighbor(k);
+      if (next->info() == -1) todo.emplace_back(next, level + (cdt.is_constrained({f, k}) ? 1 : 0));
+    }
+  }
+  const std::size_t before = out.size();
+  for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
+    if (f->info() % 2 == 0) continue;
+    std::array<std::int32_t, 3> t{f->vertex(0)->info(), f->vertex(1)->info(), f->vertex(2)->info()};
+    const EK::Vector_3 n =
+        CGAL::normal(f->vertex(0)->point(), f->vertex(1)->point(), f->vertex(2)->point());
+    if (CGAL::is_negative(n * normal)) std::swap(t[1], t[2]);
+    out.push_back(t);
+  }
+  return out.size() - before == faces.size();
+}
+
+// The mesh rebuilt in a canonical form that does not depend on the order in which the boolean
+// that made it worked (CGAL orders some of its work by memory address, which differs from run
+// to run): corners ordered by position, the pieces of each split face triangulated again from
+// their corners and outline alone, faces ordered by corners, with their origins if they have
+// them. False when that fails.
+bool make_canonical(ExactMesh& m) {
+  const auto [split, made_by_boolean] = m.property_map<Face, std::int32_t>("f:split");
+  if (!made_by_boolean) return false;
+  const auto [origin, has_origins] = m.property_map<Face, std::int32_t>("f:origin");
+  std::vector<ExactMesh::Vertex_index> vertices(m.vertices().begin(), m.vertices().end());
+  std::sort(vertices.begin(), vertices.end(), [&](auto a, auto b) {
+    return CGAL::compare_xyz(m.point(a), m.point(b)) == CGAL::SMALLER;
+  });
+  std::vector<std::int32_t> index(m.num_vertices(), -1);
+  for (std::size_t i = 0; i < vertices.size(); ++i)
+    index[vertices[i].idx()] = static_cast<std::int32_t>(i);
+  std::vector<std::pair<std::array<std::int32_t, 3>, std::int32_t>> faces;  // with their origin
+  std::map<std::int32_t, std::vector<Face>> pieces;
+  for (Face f : m.faces()) {
+    if (split[f] >= 0) {
+      pieces[split[f]].push_back(f);
+      continue;
+    }
+    std::array<std::int32_t, 3> t{};
+    int k = 0;
+    for (auto v : CGAL::vertices_around_face(m.halfedge(f), m))
+      if (k < 3) t[k++] = index[v.idx()];
+    faces.emplace_back(t, has_origins ? origin[f] : 0);
+  }
+  for (const auto& [group, piece_faces] : pieces) {
+    std::vector<std::array<std::int32_t, 3>> triangles;
+    if (!retriangulate(m, piece_faces, split, index, triangles)) return false;
+    for (const auto& t : triangles)
+      faces.emplace_back(t, has_origins ? origin[piece_faces.front()] : 0);
+  }
+  for (auto& [t, o] : faces) std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
+  std::sort(faces.begin(), faces.end());
+  ExactMesh out;
+  for (auto v : vertices) out.add_vertex(m.point(v));
+  for (const auto& [t, o] : faces)
+    if (out.add_face(ExactMesh::Vertex_index(t[0]), ExactMesh::Vertex_index(t[1]),
+                     ExactMesh::Vertex_index(t[2])) == ExactMesh::null_face())
+      return false;
+  if (has_origins) {  // faces are numbered in the order added
+    const OriginMap out_origin = origin_map(out, kCarvedVoid);
+    for (std::size_t f = 0; f < faces.size(); ++f)
+      out_origin[Face(static_cast<ExactMesh::size_type>(f))] = faces[f].second;
+  }
+  m = std::move(out);
+  return true;
+}
+
+// boolean() with its result made canonical (make_canonical()).
+bool canonical_boolean(Boolean op, ExactMesh& a, ExactMesh& b, ExactMesh& out,
+                       std::int32_t fallback) {
+  return boolean(op, a, b, out, fallback) && make_canonical(out);
+}
 
 // The hull as tetrahedra fanned from one of its corners, with its bounding box.
 struct Hull {
@@ -46,6 +175,30 @@ bool make_hull(const std::vector<Vec3>& points, Hull& hull) {
   for (const Vec3& p : points) exact.push_back(exact_point(p));
   CGAL::convex_hull_3(exact.begin(), exact.end(), hull.mesh);
   if (hull.mesh.number_of_faces() < 4 || !CGAL::is_closed(hull.mesh)) return false;
+  // How CGAL triangulates a facet with more than three corners can follow memory addresses:
+  // each facet is triangulated again, as the pieces of one split face.
+  const SplitMap facet = fresh_split_map(hull.mesh);
+  std::int32_t facets = 0;
+  for (Face f : hull.mesh.faces()) {
+    if (facet[f] >= 0) continue;
+    facet[f] = facets;
+    for (std::vector<Face> todo{f}; !todo.empty();) {
+      const Face g = todo.back();
+      todo.pop_back();
+      for (auto h : CGAL::halfedges_around_face(hull.mesh.halfedge(g), hull.mesh)) {
+        const Face across = hull.mesh.face(hull.mesh.opposite(h));
+        const auto& m = hull.mesh;
+        if (facet[across] < 0 &&
+            CGAL::coplanar(m.point(m.source(h)), m.point(m.target(h)), m.point(m.target(m.next(h))),
+                           m.point(m.target(m.next(m.opposite(h)))))) {
+          facet[across] = facets;
+          todo.push_back(across);
+        }
+      }
+    }
+    ++facets;
+  }
+  if (!make_canonical(hull.mesh)) return false;
   const ExactMesh::Vertex_index apex = *hull.mesh.vertices().begin();
   for (ExactMesh::Vertex_index v : hull.mesh.vertices()) hull.box += hull.mesh.point(v).bbox();
   for (Face f : hull.mesh.faces()) {
@@ -254,8 +407,8 @@ std::optional<CarvedHull> carve_hull(const std::vector<Part>& parts, std::int32_
     return std::nullopt;
   }
   ExactMesh whole_copy = *whole, hull_copy = hull.mesh, rest, removed;
-  if (!boolean(Boolean::Difference, *whole, hull.mesh, rest, kCarvedVoid) ||
-      !boolean(Boolean::Intersection, whole_copy, hull_copy, removed, kCarvedVoid)) {
+  if (!canonical_boolean(Boolean::Difference, *whole, hull.mesh, rest, kCarvedVoid) ||
+      !canonical_boolean(Boolean::Intersection, whole_copy, hull_copy, removed, kCarvedVoid)) {
     why = "CGAL rejects the cut";
     return std::nullopt;
   }
@@ -322,8 +475,8 @@ std::optional<CarvedHull> fill_hull(const std::vector<Part>& parts, std::int32_t
   ExactMesh hull_for_p = hull.mesh, hull_for_q = hull.mesh, grown, shrunk;
   origin_map(hull_for_p, q);  // the hull's faces that p gains face q, and the other way
   origin_map(hull_for_q, p);
-  if (!boolean(Boolean::Union, *a, hull_for_p, grown, q) ||
-      !boolean(Boolean::Difference, *b, hull_for_q, shrunk, p)) {
+  if (!canonical_boolean(Boolean::Union, *a, hull_for_p, grown, q) ||
+      !canonical_boolean(Boolean::Difference, *b, hull_for_q, shrunk, p)) {
     why = "CGAL rejects the fill";
     return std::nullopt;
   }
@@ -344,9 +497,9 @@ std::optional<CarvedHull> yield_hull(const std::vector<Part>& parts, std::int32_
   ExactMesh hull_for_p = hull.mesh, hull_for_piece = hull.mesh, kept, piece, grown;
   origin_map(hull_for_p, q);  // p's new faces face q, the piece's face p
   origin_map(hull_for_piece, p);
-  if (!boolean(Boolean::Difference, *a, hull_for_p, kept, q) ||
-      !boolean(Boolean::Intersection, *a_copy, hull_for_piece, piece, p) ||
-      !boolean(Boolean::Union, *b, piece, grown, p)) {
+  if (!canonical_boolean(Boolean::Difference, *a, hull_for_p, kept, q) ||
+      !canonical_boolean(Boolean::Intersection, *a_copy, hull_for_piece, piece, p) ||
+      !canonical_boolean(Boolean::Union, *b, piece, grown, p)) {
     why = "CGAL rejects the exchange";
     return std::nullopt;
   }

@@ -22,6 +22,7 @@ using EK = CGAL::Exact_predicates_exact_constructions_kernel;
 using ExactMesh = CGAL::Surface_mesh<EK::Point_3>;
 using Face = ExactMesh::Face_index;
 using OriginMap = ExactMesh::Property_map<Face, std::int32_t>;
+using SplitMap = ExactMesh::Property_map<Face, std::int32_t>;
 
 // Vertex positions as map keys: shared vertices of neighbouring parts have equal coordinates.
 struct VecLess {
@@ -45,14 +46,33 @@ inline OriginMap origin_map(ExactMesh& m, std::int32_t fallback) {
   return m.add_property_map<Face, std::int32_t>("f:origin", fallback).first;
 }
 
-// Keeps, for every face of the result, the origin of the face it was split or copied from.
+// The mesh's "f:split" map, every face at -1: which faces of one boolean's result come from
+// one operand face that the boolean split (equal values >= 0).
+inline SplitMap fresh_split_map(ExactMesh& m) {
+  const auto [split, made] = m.add_property_map<Face, std::int32_t>("f:split", -1);
+  if (!made)
+    for (Face f : m.faces()) split[f] = -1;
+  return split;
+}
+
+// Keeps, for every face of the result, the origin of the face it was split or copied from, and
+// which split face it is a piece of.
 struct OriginVisitor : PMP::Corefinement::Default_visitor<ExactMesh> {
   std::map<const ExactMesh*, OriginMap> origin;
-  std::int32_t current = 0;
-  void before_subface_creations(Face f, ExactMesh& tm) { current = origin.at(&tm)[f]; }
-  void after_subface_created(Face f, ExactMesh& tm) { origin.at(&tm)[f] = current; }
+  std::map<const ExactMesh*, SplitMap> split;
+  std::int32_t current = 0, current_split = -1, splits = 0;
+  void before_subface_creations(Face f, ExactMesh& tm) {
+    current = origin.at(&tm)[f];
+    current_split = splits++;
+    split.at(&tm)[f] = current_split;
+  }
+  void after_subface_created(Face f, ExactMesh& tm) {
+    origin.at(&tm)[f] = current;
+    split.at(&tm)[f] = current_split;
+  }
   void after_face_copy(Face from, const ExactMesh& src, Face to, ExactMesh& dst) {
     origin.at(&dst)[to] = origin.at(&src)[from];
+    split.at(&dst)[to] = split.at(&src)[from];
   }
 };
 
@@ -63,7 +83,10 @@ enum class Boolean { Intersection, Union, Difference };
 // (self-intersecting) or cannot build the result.
 inline bool boolean(Boolean op, ExactMesh& a, ExactMesh& b, ExactMesh& out, std::int32_t fallback) {
   OriginVisitor visitor;
-  for (ExactMesh* m : {&a, &b, &out}) visitor.origin[m] = origin_map(*m, fallback);
+  for (ExactMesh* m : {&a, &b, &out}) {
+    visitor.origin[m] = origin_map(*m, fallback);
+    visitor.split[m] = fresh_split_map(*m);
+  }
   const auto np = CGAL::parameters::visitor(visitor).throw_on_self_intersection(true);
   const auto checked = CGAL::parameters::throw_on_self_intersection(true);
   bool built = false;
