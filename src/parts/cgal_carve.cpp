@@ -170,24 +170,18 @@ EK::Triangle_3 exact_triangle(const TriMesh& m, const Tri& t) {
                         exact_point(m.vertices[t[2]]));
 }
 
-bool make_hull(const std::vector<Vec3>& points, Hull& hull) {
-  std::vector<EK::Point_3> exact;
-  for (const Vec3& p : points) exact.push_back(exact_point(p));
-  CGAL::convex_hull_3(exact.begin(), exact.end(), hull.mesh);
-  if (hull.mesh.number_of_faces() < 4 || !CGAL::is_closed(hull.mesh)) return false;
-  // How CGAL triangulates a facet with more than three corners can follow memory addresses:
-  // each facet is triangulated again, as the pieces of one split face.
-  const SplitMap facet = fresh_split_map(hull.mesh);
+// Numbers the faces of a convex mesh by the facet (plane) they lie in, as "f:split".
+void number_facets(ExactMesh& m) {
+  const SplitMap facet = fresh_split_map(m);
   std::int32_t facets = 0;
-  for (Face f : hull.mesh.faces()) {
+  for (Face f : m.faces()) {
     if (facet[f] >= 0) continue;
     facet[f] = facets;
     for (std::vector<Face> todo{f}; !todo.empty();) {
       const Face g = todo.back();
       todo.pop_back();
-      for (auto h : CGAL::halfedges_around_face(hull.mesh.halfedge(g), hull.mesh)) {
-        const Face across = hull.mesh.face(hull.mesh.opposite(h));
-        const auto& m = hull.mesh;
+      for (auto h : CGAL::halfedges_around_face(m.halfedge(g), m)) {
+        const Face across = m.face(m.opposite(h));
         if (facet[across] < 0 &&
             CGAL::coplanar(m.point(m.source(h)), m.point(m.target(h)), m.point(m.target(m.next(h))),
                            m.point(m.target(m.next(m.opposite(h)))))) {
@@ -198,6 +192,16 @@ bool make_hull(const std::vector<Vec3>& points, Hull& hull) {
     }
     ++facets;
   }
+}
+
+bool make_hull(const std::vector<Vec3>& points, Hull& hull) {
+  std::vector<EK::Point_3> exact;
+  for (const Vec3& p : points) exact.push_back(exact_point(p));
+  CGAL::convex_hull_3(exact.begin(), exact.end(), hull.mesh);
+  if (hull.mesh.number_of_faces() < 4 || !CGAL::is_closed(hull.mesh)) return false;
+  // How CGAL triangulates a facet with more than three corners can follow memory addresses:
+  // each facet is triangulated again, as the pieces of one split face.
+  number_facets(hull.mesh);
   if (!make_canonical(hull.mesh)) return false;
   const ExactMesh::Vertex_index apex = *hull.mesh.vertices().begin();
   for (ExactMesh::Vertex_index v : hull.mesh.vertices()) hull.box += hull.mesh.point(v).bbox();
