@@ -68,6 +68,11 @@ void expect_valid_decomposition(const TriMesh& input, const Decomposition& d,
     EXPECT_NEAR(p.direction.norm(), 1.0, 1e-9);
     parts_volume += signed_volume(p.mesh);
   }
+  // Material carved out of the parts (a void each) still counts: parts and voids are the solid.
+  for (const CarvedVoid& v : d.carving.voids) {
+    EXPECT_EQ(test::solid_topology_problem(v.mesh), "") << "void of part " << v.part;
+    parts_volume += signed_volume(v.mesh);
+  }
   const double tet_volume = total_volume(d.tets);
   const double input_volume = signed_volume(input);
   double input_area = 0.0;
@@ -88,7 +93,8 @@ void expect_valid_decomposition(const TriMesh& input, const Decomposition& d,
     for (const Part& p : d.parts) {
       std::vector<Vec3> outer;
       for (std::size_t t = 0; t < p.mesh.triangles.size(); t += 7)
-        if (p.triangle_neighbor[t] < 0) outer.push_back(p.mesh.vertices[p.mesh.triangles[t][0]]);
+        if (p.triangle_neighbor[t] == -1)  // not a void's wall
+          outer.push_back(p.mesh.vertices[p.mesh.triangles[t][0]]);
       outer.resize(std::min<std::size_t>(outer.size(), 300));
       // Float precision: the points are rounded as the STL output holds them.
       EXPECT_LE(test::max_distance_to_surface(outer, input), 1e-4) << "part " << p.id;
