@@ -118,9 +118,10 @@ inline Vec3 rounded(const EK::Point_3& p) {
 
 // The mesh as a TriMesh, with each triangle's origin. Points within a float step of each other
 // become one, and the needle triangles between them go (in a neighbour too, which rounds the
-// same points). The order CGAL lists faces and their corners in can follow its threaded search
-// for intersections, so the result is in a canonical order: vertices by position, triangles by
-// corners, each from its lowest corner. That makes it the same on any thread count.
+// same points). The order CGAL lists faces and their corners in can follow memory addresses,
+// which differ from run to run, so the result is in a canonical order: vertices by position,
+// triangles by corners, each from its lowest corner. (How it triangulates co-circular corners
+// can follow them too; carving rebuilds its results for that, see cgal_carve.cpp.)
 inline std::pair<TriMesh, std::vector<std::int32_t>> canonical(ExactMesh& m,
                                                                std::int32_t fallback) {
   const OriginMap origin_of = origin_map(m, fallback);
