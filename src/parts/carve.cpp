@@ -162,6 +162,19 @@ std::vector<Vec3> exchange_points(const Patch& patch, const detail::CarveLines& 
   return points;
 }
 
+// Hull points scaled about their centroid: a hull whose cut passes within a float step of the
+// part's corners (which rounding then breaks) is tried again a little larger, then smaller.
+constexpr int kVariants = 3;
+std::vector<Vec3> varied(std::vector<Vec3> points, int variant) {
+  if (variant == 0) return points;
+  Vec3 centroid(0, 0, 0);
+  for (const Vec3& x : points) centroid += x;
+  centroid /= static_cast<double>(points.size());
+  const double scale = variant == 1 ? 1.03 : 0.97;
+  for (Vec3& x : points) x = centroid + scale * (x - centroid);
+  return points;
+}
+
 std::string describe(std::int32_t p, const Patch& patch, const std::string& why) {
   const Vec3& at = patch.front()->gap;
   char text[160];
@@ -208,20 +221,24 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
         if (points.empty())
           reason = way == Way::Carve ? "the part reaches its outer surface on both sides"
                                      : "no one other part is there";
-        else if (way == Way::Fill)
-          changed = detail::fill_hull(parts, p, other, points, reason);
-        else if (way == Way::Yield)
-          changed = detail::yield_hull(parts, p, other, points, reason);
-        else
-          changed = detail::carve_hull(parts, p, points, reason);
-        // Rounding to float can make the new triangles cross others.
-        if (changed)
-          for (const auto& [id, part] : changed->changed)
-            if (!crossed[id] && !intersecting_triangles(part.mesh, 1).empty()) {
-              reason = "part " + std::to_string(id) + " would intersect itself once rounded";
-              changed.reset();
-              break;
-            }
+        for (int variant = 0; variant < kVariants && !points.empty(); ++variant) {
+          const std::vector<Vec3> hull = varied(points, variant);
+          if (way == Way::Fill)
+            changed = detail::fill_hull(parts, p, other, hull, reason);
+          else if (way == Way::Yield)
+            changed = detail::yield_hull(parts, p, other, hull, reason);
+          else
+            changed = detail::carve_hull(parts, p, hull, reason);
+          // Rounding to float can make the new triangles cross others.
+          if (changed)
+            for (const auto& [id, part] : changed->changed)
+              if (!crossed[id] && !intersecting_triangles(part.mesh, 1).empty()) {
+                reason = "part " + std::to_string(id) + " would intersect itself once rounded";
+                changed.reset();
+                break;
+              }
+          if (changed || reason.find("once rounded") == std::string::npos) break;
+        }
         if (changed) {
           std::vector<Part> tried = parts;
           for (auto& [id, part] : changed->changed) tried[id] = std::move(part);
