@@ -118,6 +118,20 @@ void expect_valid_decomposition(const TriMesh& input, const Decomposition& d,
   EXPECT_LE(test::max_distance_to_surface(outer, input), d.tets.boundary_tolerance_mm + 1e-9);
   EXPECT_LE(d.tets.boundary_tolerance_mm, 4 * opts.tets.facet_distance_mm);
 
+  // The assembly order holds for the parts as they are in the end (carving moves material
+  // between them after the order is found): each goes in along its way with no part placed
+  // before it in the way.
+  if (d.assembly.found) {
+    std::vector<char> placed(d.parts.size(), 0);
+    for (std::int32_t p : d.assembly.order) {
+      for (const Obstruction& o :
+           obstructions(d.parts, p, d.assembly.removal[p], d.assembly_tolerance_mm))
+        EXPECT_FALSE(placed[o.part])
+            << "part " << p << " runs into part " << o.part << " at " << o.from.transpose();
+      placed[p] = 1;
+    }
+  }
+
   // Interfaces are smoothed: the area-weighted normal angle between neighbouring interface
   // triangles is well below that of the raw tet faces.
   double raw_sum = 0, raw_area = 0, smooth_sum = 0, smooth_area = 0;

@@ -359,6 +359,13 @@ struct Carving {
   std::vector<std::string> refused;
 };
 
+// The assembly order carving must keep (see carve_dhf_gaps()).
+struct KeptAssembly {
+  std::vector<Vec3> directions;  // plan_assembly()'s extra_directions
+  double tolerance_mm = 0.0;
+  AssemblyPlan plan;  // of the parts as given; updated as carving changes them
+};
+
 // The paper's conservative carving (§4.3.1), and better, for what the label-level repairs leave:
 // where lines along a part P's direction meet it in several stretches deeper apart than
 // epsilon_mm (dhf_gaps() on about `lines` lines). Neighbouring such lines form a patch (with
@@ -374,9 +381,13 @@ struct Carving {
 // P meets two other parts; filling, a third part) is refused, as is one CGAL rejects, one that
 // makes a part fall apart, and one after which P has no fewer gap lines or another part more.
 // A refused patch is halved, up to three times. Interfaces stay shared exactly. Deterministic.
+// Filling and yielding move material between parts, which can put one in another's way: with
+// `assembly` given, such a change is kept only when plan_assembly() still finds an order (or,
+// when assembly->plan has none, leaves no more parts blocked), and assembly->plan becomes that
+// plan. (Carving only removes material: no part runs into more.)
 // Pre: parts have ids 0..n-1 in order and closed meshes with triangle_neighbor.
 // With exchange false, only carving is tried.
 Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsilon_mm,
-                       bool exchange = true);
+                       bool exchange = true, KeptAssembly* assembly = nullptr);
 
 }  // namespace dhfcast

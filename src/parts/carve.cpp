@@ -186,7 +186,7 @@ std::string describe(std::int32_t p, const Patch& patch, const std::string& why)
 }  // namespace
 
 Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsilon_mm,
-                       bool exchange) {
+                       bool exchange, KeptAssembly* assembly) {
   if (lines < 1 || !(epsilon_mm > 0.0))
     throw Error(ErrorCode::InvalidOptions, "carving: lines must be >= 1 and epsilon > 0");
   Carving out;
@@ -246,7 +246,17 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
           bool worse = count(after[p]) >= count(gaps[p]);
           for (std::size_t q = 0; q < parts.size(); ++q)
             worse = worse || count(after[q]) > count(gaps[q]);
-          if (!worse) {
+          std::optional<AssemblyPlan> plan;
+          if (!worse && assembly && way != Way::Carve) {
+            plan = plan_assembly(tried, assembly->directions, assembly->tolerance_mm);
+            if (plan->blocked > assembly->plan.blocked || (assembly->plan.found && !plan->found)) {
+              reason = "the parts would have no assembly order";
+              plan.reset();
+              changed.reset();
+            }
+          }
+          if (changed && !worse) {
+            if (plan) assembly->plan = std::move(*plan);
             const double moved = tried[p].volume_mm3 - parts[p].volume_mm3;
             if (way == Way::Fill)
               out.exchanges.push_back({other, p, moved});
@@ -259,7 +269,7 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
             done = true;
             break;
           }
-          reason = "it leaves as many gap lines or more";
+          if (worse) reason = "it leaves as many gap lines or more";
         }
         why += (why.empty() ? "" : "; ") + std::string(kWayNames[static_cast<int>(way)]) + ": " +
                reason;

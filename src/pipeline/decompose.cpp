@@ -164,6 +164,16 @@ struct PartsStage {
   double assembly_tolerance_mm = 0.0;
 };
 
+// The directions a part may leave along when the object is taken apart, besides its own +-d
+// (plan_assembly()'s extra directions): the other parts' +-d, then a coarse set over the sphere.
+std::vector<Vec3> removal_directions(const std::vector<Part>& parts,
+                                     const std::vector<Vec3>& sphere_directions) {
+  std::vector<Vec3> out;
+  for (const Part& p : parts) out.insert(out.end(), {p.direction, -p.direction});
+  out.insert(out.end(), sphere_directions.begin(), sphere_directions.end());
+  return out;
+}
+
 // Parts of a labeling: made manifold, extracted, their interfaces smoothed, cut from the solid
 // when asked, and ordered for assembly.
 PartsStage make_parts(const TriMesh& solid, const TetMesh& tets, std::vector<std::int32_t> label,
@@ -192,14 +202,10 @@ PartsStage make_parts(const TriMesh& solid, const TetMesh& tets, std::vector<std
   // goes deeper than epsilon / 2 into another part: half what `dhfcast check` allows, as check
   // draws other points of the surface. When no order exists with that margin, the margin
   // shrinks: an order closer to check's limit is still one that check can confirm.
-  std::vector<Vec3> removal_directions;
-  for (const Part& p : out.parts)
-    removal_directions.insert(removal_directions.end(), {p.direction, -p.direction});
-  removal_directions.insert(removal_directions.end(), sphere_directions.begin(),
-                            sphere_directions.end());
+  const std::vector<Vec3> removal = removal_directions(out.parts, sphere_directions);
   for (double share : {0.5, 0.75, 0.95}) {
     out.assembly_tolerance_mm = share * opts.access.epsilon_mm;
-    out.assembly = plan_assembly(out.parts, removal_directions, out.assembly_tolerance_mm);
+    out.assembly = plan_assembly(out.parts, removal, out.assembly_tolerance_mm);
     if (out.assembly.found) break;
   }
   return out;
@@ -640,10 +646,14 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   }
   d.made_candidates[kept].kept = true;
   AssembledParts stage = std::move(best->stage);
-  // What the label-level repairs leave is carved out; the parts only lose material, so the
-  // assembly order stays.
-  if (opts.carve && best->gap_lines > 0)
-    d.carving = carve_dhf_gaps(stage.parts.parts, kGapLines, opts.access.epsilon_mm);
+  // What the label-level repairs leave is mended on the final meshes, keeping an assembly order.
+  if (opts.carve && best->gap_lines > 0) {
+    KeptAssembly kept_assembly{removal_directions(stage.parts.parts, context.sphere),
+                               stage.parts.assembly_tolerance_mm, stage.parts.assembly};
+    d.carving =
+        carve_dhf_gaps(stage.parts.parts, kGapLines, opts.access.epsilon_mm, true, &kept_assembly);
+    stage.parts.assembly = std::move(kept_assembly.plan);
+  }
   const std::size_t chosen = best->repaired_index;
   d.sandwich = std::move(repaired[chosen].repair);
   const LabelingCandidate& candidate = candidates[repaired[chosen].index];
