@@ -380,7 +380,9 @@ struct KeptAssembly {
 // Neither ever moves the outer surface: a hull that would reach it (or, carving, a curve where
 // P meets two other parts; filling, a third part) is refused, as is one CGAL rejects, one that
 // makes a part fall apart, and one after which P has no fewer gap lines or another part more.
-// A refused patch is halved, up to three times. Interfaces stay shared exactly. Deterministic.
+// A hull whose cut float rounding breaks (a part no longer closed, or crossing itself) is tried
+// again 3 % larger, then 3 % smaller, about its centroid. A refused patch is halved, up to three
+// times. Interfaces stay shared exactly. Deterministic.
 // Filling and yielding move material between parts, which can put one in another's way: with
 // `assembly` given, such a change is kept only when plan_assembly() still finds an order (or,
 // when assembly->plan has none, leaves no more parts blocked), and assembly->plan becomes that
