@@ -162,6 +162,11 @@ std::vector<Vec3> exchange_points(const Patch& patch, const detail::CarveLines& 
   return points;
 }
 
+// Whether a refusal came from rounding to float (see carve.h).
+bool broken_by_rounding(const std::string& why) {
+  return why.find("once rounded") != std::string::npos;
+}
+
 // Hull points scaled about their centroid: a hull whose cut passes within a float step of the
 // part's corners (which rounding then breaks) is tried again a little larger, then smaller.
 constexpr int kVariants = 3;
@@ -237,7 +242,7 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
                 changed.reset();
                 break;
               }
-          if (changed || reason.find("once rounded") == std::string::npos) break;
+          if (changed || !broken_by_rounding(reason)) break;
         }
         if (changed) {
           std::vector<Part> tried = parts;
@@ -246,16 +251,14 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
           bool worse = count(after[p]) >= count(gaps[p]);
           for (std::size_t q = 0; q < parts.size(); ++q)
             worse = worse || count(after[q]) > count(gaps[q]);
+          const char* refusal = worse ? "it leaves as many gap lines or more" : nullptr;
           std::optional<AssemblyPlan> plan;
-          if (!worse && assembly && way != Way::Carve) {
+          if (!refusal && assembly && way != Way::Carve) {
             plan = plan_assembly(tried, assembly->directions, assembly->tolerance_mm);
-            if (plan->blocked > assembly->plan.blocked || (assembly->plan.found && !plan->found)) {
-              reason = "the parts would have no assembly order";
-              plan.reset();
-              changed.reset();
-            }
+            if (plan->blocked > assembly->plan.blocked || (assembly->plan.found && !plan->found))
+              refusal = "the parts would have no assembly order";
           }
-          if (changed && !worse) {
+          if (!refusal) {
             if (plan) assembly->plan = std::move(*plan);
             const double moved = tried[p].volume_mm3 - parts[p].volume_mm3;
             if (way == Way::Fill)
@@ -269,7 +272,7 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
             done = true;
             break;
           }
-          if (worse) reason = "it leaves as many gap lines or more";
+          reason = refusal;
         }
         why += (why.empty() ? "" : "; ") + std::string(kWayNames[static_cast<int>(way)]) + ": " +
                reason;

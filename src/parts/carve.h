@@ -43,6 +43,9 @@ struct CarveLines {
 CarveLines carve_lines(const std::vector<Part>& parts, std::int32_t p, std::int64_t lines,
                        double epsilon_mm);
 
+// The functions below refuse with a reason in `why`; a reason that rounding the exact result to
+// float caused ends in "once rounded" (carving then tries the hull a little larger or smaller).
+
 // Part p and its neighbours once the convex hull of `hull` is carved out of p, or filled by p.
 struct CarvedHull {
   std::vector<std::pair<std::int32_t, Part>> changed;  // (id, new part), p first
