@@ -1527,6 +1527,10 @@ TEST(DhfGaps, LinesThroughAPartsMouthCrossTheNeighbourBetweenItsJaws) {
   // Along x, Q is one interval on every line; a gap no deeper than epsilon is none.
   EXPECT_TRUE(dhf_gaps(parts, kGapLines, kTolerance_mm)[q].empty());
   EXPECT_TRUE(dhf_gaps(parts, kGapLines, 5.0)[p].empty());
+  // Counted from each part's own boundary alone, the gaps are the same.
+  EXPECT_EQ(dhf_gap_count(parts[p], kGapLines, kTolerance_mm), std::ssize(gaps));
+  EXPECT_EQ(dhf_gap_count(parts[q], kGapLines, kTolerance_mm), 0);
+  EXPECT_EQ(dhf_gap_count(parts[p], kGapLines, 5.0), 0);
 }
 
 TEST(FillGaps, TheTongueBetweenThePartsJawsJoinsIt) {
@@ -1772,11 +1776,13 @@ TEST(CarveDhfGaps, AHullGivesTheSamePartsWhateverOrderItsPointsComeIn) {
   std::mt19937 random(7);
   std::shuffle(shuffled.begin(), shuffled.end(), random);
   std::string why;
-  const std::optional<detail::CarvedHull> filled = detail::fill_hull(parts, p, q, points, why);
+  const std::optional<detail::CarvedHull> filled =
+      detail::fill_hull(parts, p, q, points, true, why);
   ASSERT_TRUE(filled) << why;
   for (int order = 0; order < 4; ++order) {
     std::shuffle(shuffled.begin(), shuffled.end(), random);
-    const std::optional<detail::CarvedHull> again = detail::fill_hull(parts, p, q, shuffled, why);
+    const std::optional<detail::CarvedHull> again =
+        detail::fill_hull(parts, p, q, shuffled, true, why);
     ASSERT_TRUE(again) << why;
     ASSERT_EQ(again->changed.size(), filled->changed.size());
     for (std::size_t k = 0; k < filled->changed.size(); ++k)

@@ -252,6 +252,14 @@ TEST(Pipeline, ElephantAtPaperSize) {
   for (const MadeCandidate& m : d.made_candidates)
     if (!m.dropped) EXPECT_LE(key(kept), key(m));
 
+  // Each part's gaps, counted from its own boundary alone (as carving counts them), are those
+  // dhf_gaps() finds tracing every part.
+  constexpr std::int64_t kLines = 50000;
+  const std::vector<std::vector<DhfGap>> gaps = dhf_gaps(d.parts, kLines, opts.access.epsilon_mm);
+  for (std::size_t p = 0; p < d.parts.size(); ++p)
+    EXPECT_EQ(dhf_gap_count(d.parts[p], kLines, opts.access.epsilon_mm), std::ssize(gaps[p]))
+        << "part " << p;
+
   // The independent verifier, on the written folder. At this coarse resolution the dhf and
   // assembly checks run and report only (see InfeasibleVolumeRepair below).
   const CheckReport report = check_written(input, opts, d, "elephant");

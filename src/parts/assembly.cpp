@@ -64,6 +64,10 @@ bool near_triangle(RTCPointQueryFunctionArguments* args) {
   return true;
 }
 
+// The cosine below which a face counts as parallel to a ray: a few float steps (2^-24), the
+// precision of the ray's direction as Embree takes it.
+constexpr double kParallel = 1e-6;
+
 // One Embree scene holding every part's boundary; geometry id = part id.
 class PartScene {
  public:
@@ -118,7 +122,10 @@ class PartScene {
 
   // Every crossing of the ray origin + t * dir, t > 0, with the parts' boundaries, sorted by t.
   // Embree only finds the triangles; t and the side are computed in double precision. Faces
-  // parallel to the ray are skipped: sliding along them is no crossing. Thread-safe.
+  // parallel to the ray are skipped: sliding along them is no crossing. So are faces parallel
+  // to it within the precision of the float ray Embree traces: on those, t in double precision
+  // can land far from where Embree found the hit, and whether the ray crosses is noise.
+  // Thread-safe.
   void crossings(const Vec3& origin, const Vec3& dir, std::vector<std::uint64_t>& hits,
                  std::vector<Crossing>& out) const {
     hits.clear();
@@ -144,7 +151,7 @@ class PartScene {
       const std::vector<Vec3>& v = parts_[part].mesh.vertices;
       const Vec3 normal = (v[tri[1]] - v[tri[0]]).cross(v[tri[2]] - v[tri[0]]);
       const double along = normal.dot(dir);
-      if (along == 0.0) continue;
+      if (std::abs(along) <= kParallel * normal.norm() * dir.norm()) continue;
       const double t_mm = normal.dot(v[tri[0]] - origin) / along;
       if (t_mm > 0.0)
         out.push_back({t_mm, part, along > 0.0, static_cast<std::int32_t>(std::uint32_t(h))});
@@ -552,30 +559,50 @@ void line_gaps(const PartScene& scene, std::int32_t p, const Vec3& origin, const
   }
 }
 
+// Part p's gaps (see dhf_gaps()), on the lines of its grid.
+std::vector<DhfGap> part_gaps(const PartScene& scene, const Part& part, std::int32_t p,
+                              std::int64_t lines, double epsilon_mm) {
+  if (part.mesh.vertices.empty()) return {};
+  const LineGrid grid(part, lines);
+  std::vector<std::vector<DhfGap>> per_line(static_cast<std::size_t>(grid.size()));
+  tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, grid.size(), 1024),
+                    [&](const tbb::blocked_range<std::int64_t>& range) {
+                      std::vector<std::uint64_t> hits;
+                      std::vector<Crossing> crossings;
+                      for (std::int64_t k = range.begin(); k != range.end(); ++k)
+                        line_gaps(scene, p, grid.origin(k), grid.d, epsilon_mm, hits, crossings,
+                                  per_line[k]);
+                    });
+  std::vector<DhfGap> gaps;
+  for (const std::vector<DhfGap>& line : per_line)
+    gaps.insert(gaps.end(), line.begin(), line.end());
+  return gaps;
+}
+
+void check_gap_options(std::int64_t lines, double epsilon_mm) {
+  if (lines < 1 || lines > 100'000'000 || !(epsilon_mm >= 0.0))
+    throw Error(ErrorCode::InvalidOptions, "dhf_gaps: lines must be in 1..1e8, epsilon >= 0");
+}
+
 }  // namespace
 
 std::vector<std::vector<DhfGap>> dhf_gaps(const std::vector<Part>& parts, std::int64_t lines,
                                           double epsilon_mm) {
-  if (lines < 1 || lines > 100'000'000 || !(epsilon_mm >= 0.0))
-    throw Error(ErrorCode::InvalidOptions, "dhf_gaps: lines must be in 1..1e8, epsilon >= 0");
+  check_gap_options(lines, epsilon_mm);
   const PartScene scene(parts);
   std::vector<std::vector<DhfGap>> gaps(parts.size());
-  for (std::int32_t p = 0; p < static_cast<std::int32_t>(parts.size()); ++p) {
-    if (parts[p].mesh.vertices.empty()) continue;
-    const LineGrid grid(parts[p], lines);
-    std::vector<std::vector<DhfGap>> per_line(static_cast<std::size_t>(grid.size()));
-    tbb::parallel_for(tbb::blocked_range<std::int64_t>(0, grid.size(), 1024),
-                      [&](const tbb::blocked_range<std::int64_t>& range) {
-                        std::vector<std::uint64_t> hits;
-                        std::vector<Crossing> crossings;
-                        for (std::int64_t k = range.begin(); k != range.end(); ++k)
-                          line_gaps(scene, p, grid.origin(k), grid.d, epsilon_mm, hits, crossings,
-                                    per_line[k]);
-                      });
-    for (const std::vector<DhfGap>& line : per_line)
-      gaps[p].insert(gaps[p].end(), line.begin(), line.end());
-  }
+  for (std::int32_t p = 0; p < static_cast<std::int32_t>(parts.size()); ++p)
+    gaps[p] = part_gaps(scene, parts[p], p, lines, epsilon_mm);
   return gaps;
+}
+
+std::int32_t dhf_gap_count(const Part& part, std::int64_t lines, double epsilon_mm) {
+  check_gap_options(lines, epsilon_mm);
+  // Whether a stretch is a gap, and how deep, depends on the part's own boundary only.
+  std::vector<Part> alone{part};
+  alone[0].id = 0;
+  const PartScene scene(alone);
+  return static_cast<std::int32_t>(part_gaps(scene, alone[0], 0, lines, epsilon_mm).size());
 }
 
 namespace detail {

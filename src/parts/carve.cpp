@@ -20,19 +20,15 @@ namespace dhfcast {
 namespace {
 
 // Halving a refused patch this many times at most, and patches tried per part at most (a try
-// costs about one dhf_gaps()).
+// costs a few booleans and a dhf_gap_count() per part it changes).
 constexpr int kMaxSplits = 3;
 constexpr int kMaxTries = 200;
 // Rings of lines with shallow gaps a patch of deep ones takes around it.
 constexpr int kBorderRings = 2;
 
-std::int32_t count(const std::vector<DhfGap>& gaps) {
-  return static_cast<std::int32_t>(gaps.size());
-}
-
-std::int32_t count(const std::vector<std::vector<DhfGap>>& gaps) {
+std::int32_t sum(const std::vector<std::int32_t>& counts) {
   std::int32_t n = 0;
-  for (const std::vector<DhfGap>& g : gaps) n += count(g);
+  for (std::int32_t c : counts) n += c;
   return n;
 }
 
@@ -195,14 +191,16 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
   if (lines < 1 || !(epsilon_mm > 0.0))
     throw Error(ErrorCode::InvalidOptions, "carving: lines must be >= 1 and epsilon > 0");
   Carving out;
-  std::vector<std::vector<DhfGap>> gaps = dhf_gaps(parts, lines, epsilon_mm);
-  out.gap_lines_before = count(gaps);
+  // Gaps per part; a part's count depends on its own boundary only (dhf_gap_count()).
+  std::vector<std::int32_t> gaps;
+  for (const Part& part : parts) gaps.push_back(dhf_gap_count(part, lines, epsilon_mm));
+  out.gap_lines_before = sum(gaps);
   // Parts that intersect themselves already (where they touch themselves): not held to it.
   std::vector<char> crossed(parts.size());
   for (std::size_t k = 0; k < parts.size(); ++k)
     crossed[k] = !intersecting_triangles(parts[k].mesh, 1).empty();
   for (std::int32_t p = 0; p < static_cast<std::int32_t>(parts.size()); ++p) {
-    if (gaps[p].empty()) continue;
+    if (gaps[p] == 0) continue;
     const detail::CarveLines found = detail::carve_lines(parts, p, lines, epsilon_mm);
     std::deque<std::pair<Patch, int>> todo;  // with how often it was halved
     for (Patch& patch : patches(found)) todo.emplace_back(std::move(patch), 0);
@@ -228,12 +226,13 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
                                      : "no one other part is there";
         for (int variant = 0; variant < kVariants && !points.empty(); ++variant) {
           const std::vector<Vec3> hull = varied(points, variant);
+          const bool checked = !crossed[p] && (other < 0 || !crossed[other]);
           if (way == Way::Fill)
-            changed = detail::fill_hull(parts, p, other, hull, reason);
+            changed = detail::fill_hull(parts, p, other, hull, checked, reason);
           else if (way == Way::Yield)
-            changed = detail::yield_hull(parts, p, other, hull, reason);
+            changed = detail::yield_hull(parts, p, other, hull, checked, reason);
           else
-            changed = detail::carve_hull(parts, p, hull, reason);
+            changed = detail::carve_hull(parts, p, hull, checked, reason);
           // Rounding to float can make the new triangles cross others.
           if (changed)
             for (const auto& [id, part] : changed->changed)
@@ -246,11 +245,13 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
         }
         if (changed) {
           std::vector<Part> tried = parts;
-          for (auto& [id, part] : changed->changed) tried[id] = std::move(part);
-          std::vector<std::vector<DhfGap>> after = dhf_gaps(tried, lines, epsilon_mm);
-          bool worse = count(after[p]) >= count(gaps[p]);
-          for (std::size_t q = 0; q < parts.size(); ++q)
-            worse = worse || count(after[q]) > count(gaps[q]);
+          std::vector<std::int32_t> after = gaps;
+          for (auto& [id, part] : changed->changed) {
+            tried[id] = std::move(part);
+            after[id] = dhf_gap_count(tried[id], lines, epsilon_mm);
+          }
+          bool worse = after[p] >= gaps[p];
+          for (std::size_t q = 0; q < parts.size(); ++q) worse = worse || after[q] > gaps[q];
           const char* refusal = worse ? "it leaves as many gap lines or more" : nullptr;
           std::optional<AssemblyPlan> plan;
           if (!refusal && assembly && way != Way::Carve) {
@@ -289,7 +290,7 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
     for (const auto& [patch, splits] : todo)
       out.refused.push_back(describe(p, patch, "not tried (too many patches)"));
   }
-  out.gap_lines_after = count(gaps);
+  out.gap_lines_after = sum(gaps);
   return out;
 }
 

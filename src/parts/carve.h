@@ -45,6 +45,8 @@ CarveLines carve_lines(const std::vector<Part>& parts, std::int32_t p, std::int6
 
 // The functions below refuse with a reason in `why`; a reason that rounding the exact result to
 // float caused ends in "once rounded" (carving then tries the hull a little larger or smaller).
+// `checked`: the parts they change are known not to intersect themselves (intersecting_triangles()
+// found none), so CGAL need not check them again.
 
 // Part p and its neighbours once the convex hull of `hull` is carved out of p, or filled by p.
 struct CarvedHull {
@@ -59,18 +61,18 @@ struct CarvedHull {
 // two triangles facing different neighbours, or when CGAL rejects it or a part would not be
 // closed.
 std::optional<CarvedHull> carve_hull(const std::vector<Part>& parts, std::int32_t p,
-                                     const std::vector<Vec3>& hull, std::string& why);
+                                     const std::vector<Vec3>& hull, bool checked, std::string& why);
 
 // Fills the convex hull of `hull` with part p, taking it from part q: p becomes p ∪ hull and q
 // becomes q minus the hull. Refused (the reason in `why`) when the hull meets the outer surface
 // (or a carved void), any other part, or when CGAL rejects it or q would fall apart.
 std::optional<CarvedHull> fill_hull(const std::vector<Part>& parts, std::int32_t p, std::int32_t q,
-                                    const std::vector<Vec3>& hull, std::string& why);
+                                    const std::vector<Vec3>& hull, bool checked, std::string& why);
 
 // Gives part q the part of p inside the convex hull of `hull`: p becomes p minus the hull and q
 // becomes q ∪ (p ∩ hull); the outer surface stays where it is. Refused (the reason in `why`)
 // when the hull meets a third part, when CGAL rejects it or a part would fall apart.
 std::optional<CarvedHull> yield_hull(const std::vector<Part>& parts, std::int32_t p, std::int32_t q,
-                                     const std::vector<Vec3>& hull, std::string& why);
+                                     const std::vector<Vec3>& hull, bool checked, std::string& why);
 
 }  // namespace dhfcast::detail

@@ -145,8 +145,8 @@ bool make_canonical(ExactMesh& m) {
 
 // boolean() with its result made canonical (make_canonical()).
 bool canonical_boolean(Boolean op, ExactMesh& a, ExactMesh& b, ExactMesh& out,
-                       std::int32_t fallback) {
-  return boolean(op, a, b, out, fallback) && make_canonical(out);
+                       std::int32_t fallback, Operands operands) {
+  return boolean(op, a, b, out, fallback, operands) && make_canonical(out);
 }
 
 // The hull as tetrahedra fanned from one of its corners, with its bounding box.
@@ -375,7 +375,8 @@ bool exchange_hull(const std::vector<Part>& parts, std::int32_t p, std::int32_t 
 }  // namespace
 
 std::optional<CarvedHull> carve_hull(const std::vector<Part>& parts, std::int32_t p,
-                                     const std::vector<Vec3>& points, std::string& why) {
+                                     const std::vector<Vec3>& points, bool checked,
+                                     std::string& why) {
   const Part& part = parts[p];
   const TriMesh& m = part.mesh;
   Hull hull;
@@ -411,8 +412,10 @@ std::optional<CarvedHull> carve_hull(const std::vector<Part>& parts, std::int32_
     return std::nullopt;
   }
   ExactMesh whole_copy = *whole, hull_copy = hull.mesh, rest, removed;
-  if (!canonical_boolean(Boolean::Difference, *whole, hull.mesh, rest, kCarvedVoid) ||
-      !canonical_boolean(Boolean::Intersection, whole_copy, hull_copy, removed, kCarvedVoid)) {
+  const Operands operands = checked ? Operands::Known : Operands::Unchecked;
+  if (!canonical_boolean(Boolean::Difference, *whole, hull.mesh, rest, kCarvedVoid, operands) ||
+      !canonical_boolean(Boolean::Intersection, whole_copy, hull_copy, removed, kCarvedVoid,
+                         operands)) {
     why = "CGAL rejects the cut";
     return std::nullopt;
   }
@@ -467,7 +470,8 @@ std::optional<CarvedHull> carve_hull(const std::vector<Part>& parts, std::int32_
 }
 
 std::optional<CarvedHull> fill_hull(const std::vector<Part>& parts, std::int32_t p, std::int32_t q,
-                                    const std::vector<Vec3>& points, std::string& why) {
+                                    const std::vector<Vec3>& points, bool checked,
+                                    std::string& why) {
   Hull hull;
   // The hull must lie inside p and q, away from the outer surface.
   if (!exchange_hull(parts, p, q, points, true, hull, why)) return std::nullopt;
@@ -477,10 +481,11 @@ std::optional<CarvedHull> fill_hull(const std::vector<Part>& parts, std::int32_t
     return std::nullopt;
   }
   ExactMesh hull_for_p = hull.mesh, hull_for_q = hull.mesh, grown, shrunk;
+  const Operands operands = checked ? Operands::Known : Operands::Unchecked;
   origin_map(hull_for_p, q);  // the hull's faces that p gains face q, and the other way
   origin_map(hull_for_q, p);
-  if (!canonical_boolean(Boolean::Union, *a, hull_for_p, grown, q) ||
-      !canonical_boolean(Boolean::Difference, *b, hull_for_q, shrunk, p)) {
+  if (!canonical_boolean(Boolean::Union, *a, hull_for_p, grown, q, operands) ||
+      !canonical_boolean(Boolean::Difference, *b, hull_for_q, shrunk, p, operands)) {
     why = "CGAL rejects the fill";
     return std::nullopt;
   }
@@ -488,7 +493,8 @@ std::optional<CarvedHull> fill_hull(const std::vector<Part>& parts, std::int32_t
 }
 
 std::optional<CarvedHull> yield_hull(const std::vector<Part>& parts, std::int32_t p, std::int32_t q,
-                                     const std::vector<Vec3>& points, std::string& why) {
+                                     const std::vector<Vec3>& points, bool checked,
+                                     std::string& why) {
   Hull hull;
   // q takes p's faces inside the hull: their neighbours must be q or the outside.
   if (!exchange_hull(parts, p, q, points, false, hull, why)) return std::nullopt;
@@ -499,11 +505,12 @@ std::optional<CarvedHull> yield_hull(const std::vector<Part>& parts, std::int32_
     return std::nullopt;
   }
   ExactMesh hull_for_p = hull.mesh, hull_for_piece = hull.mesh, kept, piece, grown;
+  const Operands operands = checked ? Operands::Known : Operands::Unchecked;
   origin_map(hull_for_p, q);  // p's new faces face q, the piece's face p
   origin_map(hull_for_piece, p);
-  if (!canonical_boolean(Boolean::Difference, *a, hull_for_p, kept, q) ||
-      !canonical_boolean(Boolean::Intersection, *a_copy, hull_for_piece, piece, p) ||
-      !canonical_boolean(Boolean::Union, *b, piece, grown, p)) {
+  if (!canonical_boolean(Boolean::Difference, *a, hull_for_p, kept, q, operands) ||
+      !canonical_boolean(Boolean::Intersection, *a_copy, hull_for_piece, piece, p, operands) ||
+      !canonical_boolean(Boolean::Union, *b, piece, grown, p, operands)) {
     why = "CGAL rejects the exchange";
     return std::nullopt;
   }

@@ -321,8 +321,7 @@ std::optional<ExactMesh> exact_region(const TriMesh& region,
   return m;
 }
 
-// solid ∩ region, with the origins of the result's faces; nullopt when CGAL rejects an operand
-// (a region that intersects or touches itself).
+// solid ∩ region, with the origins of the result's faces; nullopt when CGAL cannot build it.
 std::optional<std::pair<TriMesh, std::vector<std::int32_t>>> intersect(const TriMesh& solid,
                                                                        ExactMesh region,
                                                                        std::string& problem) {
@@ -332,8 +331,9 @@ std::optional<std::pair<TriMesh, std::vector<std::int32_t>>> intersect(const Tri
     return std::nullopt;
   }
   ExactMesh out;
-  if (!boolean(Boolean::Intersection, *a, region, out, kFromSolid)) {
-    problem = "its region, moved out past the input surface, intersects itself";
+  // The input solid is valid; regions are cut only when intersecting_triangles() finds none.
+  if (!boolean(Boolean::Intersection, *a, region, out, kFromSolid, Operands::Known)) {
+    problem = "CGAL cannot cut its region, moved out past the input surface, from the input solid";
     return std::nullopt;
   }
   return canonical(out, kFromSolid);
@@ -472,12 +472,13 @@ std::optional<ExactMesh> fill_dents(
           exact_region(regions[j].mesh, std::vector<std::int32_t>(regions[j].mesh.triangles.size(),
                                                                   static_cast<std::int32_t>(j)));
       ExactMesh rest;
-      if (!other || !boolean(Boolean::Difference, hull, *other, rest, kFromSolid))
+      if (!other || !boolean(Boolean::Difference, hull, *other, rest, kFromSolid, Operands::Known))
         return std::nullopt;
       hull = std::move(rest);
     }
     ExactMesh joined;
-    if (!boolean(Boolean::Union, *grown, hull, joined, kFromSolid)) return std::nullopt;
+    if (!boolean(Boolean::Union, *grown, hull, joined, kFromSolid, Operands::Known))
+      return std::nullopt;
     grown = std::move(joined);
   }
   return grown;

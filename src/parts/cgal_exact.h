@@ -78,17 +78,24 @@ struct OriginVisitor : PMP::Corefinement::Default_visitor<ExactMesh> {
 
 enum class Boolean { Intersection, Union, Difference };
 
+// Whether boolean() has CGAL check its operands for self-intersections. Known: both were checked
+// already (intersecting_triangles(), exact predicates on the same float points) or made by a
+// boolean or as a convex hull. CGAL's check, in exact arithmetic, is a large share of a boolean.
+enum class Operands { Unchecked, Known };
+
 // a op b into `out`, whose faces keep the origins of the faces they come from (faces of an
-// operand without an origin map get `fallback`); false when CGAL rejects an operand
+// operand without an origin map get `fallback`); false when CGAL rejects an unchecked operand
 // (self-intersecting) or cannot build the result.
-inline bool boolean(Boolean op, ExactMesh& a, ExactMesh& b, ExactMesh& out, std::int32_t fallback) {
+inline bool boolean(Boolean op, ExactMesh& a, ExactMesh& b, ExactMesh& out, std::int32_t fallback,
+                    Operands operands) {
   OriginVisitor visitor;
   for (ExactMesh* m : {&a, &b, &out}) {
     visitor.origin[m] = origin_map(*m, fallback);
     visitor.split[m] = fresh_split_map(*m);
   }
-  const auto np = CGAL::parameters::visitor(visitor).throw_on_self_intersection(true);
-  const auto checked = CGAL::parameters::throw_on_self_intersection(true);
+  const bool check = operands == Operands::Unchecked;
+  const auto np = CGAL::parameters::visitor(visitor).throw_on_self_intersection(check);
+  const auto checked = CGAL::parameters::throw_on_self_intersection(check);
   bool built = false;
   try {
     switch (op) {
@@ -112,7 +119,13 @@ inline bool boolean(Boolean op, ExactMesh& a, ExactMesh& b, ExactMesh& out, std:
 // The point as the float STL will hold it. From the exact value, which does not depend on what
 // was evaluated before or on the thread, so neighbours round shared points alike.
 inline Vec3 rounded(const EK::Point_3& p) {
-  auto f = [](const EK::FT& x) { return double(float(CGAL::to_double(CGAL::exact(x)))); };
+  // Rounding is monotone, so when both ends of the interval that holds x round alike, x rounds
+  // to that too: its exact value (slow to compute) is needed only near a float's midpoint.
+  auto f = [](const EK::FT& x) {
+    const auto [lo, hi] = CGAL::to_interval(x);
+    if (float(lo) == float(hi)) return double(float(lo));
+    return double(float(CGAL::to_double(CGAL::exact(x))));
+  };
   return Vec3(f(p.x()), f(p.y()), f(p.z()));
 }
 
