@@ -1688,22 +1688,29 @@ std::vector<Part> tongue_parts() {
 }
 constexpr std::int64_t kTongueLines = 2500;
 
+// Carving mended every gap line by one exchange, no void: `volume_mm3` (up to `margin_mm3`
+// more) went from part `from` to part `to`.
+void expect_one_exchange(const Carving& carving, std::int32_t from, std::int32_t to,
+                         double volume_mm3, double margin_mm3) {
+  EXPECT_TRUE(carving.voids.empty());
+  ASSERT_EQ(carving.exchanges.size(), 1u) << (carving.refused.empty() ? "" : carving.refused[0]);
+  EXPECT_EQ(carving.exchanges[0].from, from);
+  EXPECT_EQ(carving.exchanges[0].to, to);
+  EXPECT_GE(carving.exchanges[0].volume_mm3, volume_mm3 - 1e-6);
+  EXPECT_LT(carving.exchanges[0].volume_mm3, volume_mm3 + margin_mm3);
+  EXPECT_GT(carving.gap_lines_before, 500);
+  EXPECT_EQ(carving.gap_lines_after, 0);
+}
+
 TEST(CarveDhfGaps, TheGapUnderATongueIsFilledByThePart) {
   const std::vector<Part> before = tongue_parts();
   ASSERT_EQ(before.size(), 2u);
   const std::int32_t p = before[0].direction_index == 0 ? 0 : 1, q = 1 - p;
   std::vector<Part> parts = before;
   const Carving carving = carve_dhf_gaps(parts, kTongueLines, kTolerance_mm);
-  EXPECT_TRUE(carving.voids.empty());
-  ASSERT_EQ(carving.exchanges.size(), 1u) << (carving.refused.empty() ? "" : carving.refused[0]);
-  EXPECT_EQ(carving.exchanges[0].from, q);
-  EXPECT_EQ(carving.exchanges[0].to, p);
   // The 20 x 30 x 10 mm of Q under the tongue, and less than half a line spacing (0.45 mm)
   // around it.
-  EXPECT_GE(carving.exchanges[0].volume_mm3, 6000.0 - 1e-6);
-  EXPECT_LT(carving.exchanges[0].volume_mm3, 6000.0 + 0.45 * (2 * 31 + 2 * 21) * 10);
-  EXPECT_GT(carving.gap_lines_before, 500);
-  EXPECT_EQ(carving.gap_lines_after, 0);
+  expect_one_exchange(carving, q, p, 6000.0, 0.45 * (2 * 31 + 2 * 21) * 10);
   for (std::int32_t k : {p, q})
     EXPECT_TRUE(dhf_gaps(parts, 4 * kTongueLines, kTolerance_mm)[k].empty());
   // Filled inside the solid: the outer surface is the same triangles, and no wall faces a void.
@@ -1711,6 +1718,32 @@ TEST(CarveDhfGaps, TheGapUnderATongueIsFilledByThePart) {
     EXPECT_EQ(facing(parts[k], -1), facing(before[k], -1));
     EXPECT_TRUE(facing(parts[k], kCarvedVoid).empty());
   }
+  expect_sound(before, parts, carving);
+}
+
+// The tongue of tongue_inside_the_neighbour() reaching the y = 0 side: Q under it does too, so a
+// hull filling P's gaps would reach the outer surface.
+int tongue_to_the_side(const Cell& c) {
+  const bool tongue = c[2] == 2 && c[0] >= 1 && c[0] <= 2 && c[1] <= 3;
+  return c[2] == 0 || c[0] == 0 || tongue ? 0 : 1;
+}
+
+TEST(CarveDhfGaps, WhereFillingWouldReachTheOuterSurfaceThePartTakesTheNeighboursPiece) {
+  const Grid g = make_grid(4, 5, 4, 10.0);
+  const std::vector<Part> before =
+      extract_parts(g.mesh, per_cell(g, tongue_to_the_side), zeros(g), {{kZ, kX}});
+  ASSERT_EQ(before.size(), 2u);
+  const std::int32_t p = before[0].direction_index == 0 ? 0 : 1, q = 1 - p;
+  std::vector<Part> parts = before;
+  const Carving carving = carve_dhf_gaps(parts, kTongueLines, kTolerance_mm);
+  // P takes Q's 20 x 40 x 10 mm under the tongue (yielding the tongue to Q would mend the lines
+  // too, the other way round).
+  expect_one_exchange(carving, q, p, 8000.0, 0.45 * (2 * 41 + 21) * 10);
+  for (std::int32_t k : {p, q})
+    EXPECT_TRUE(dhf_gaps(parts, 4 * kTongueLines, kTolerance_mm)[k].empty());
+  // The outer surface stays where it was (its area, in expect_sound()); P's now covers the side
+  // of the piece it took.
+  EXPECT_GT(facing(parts[p], -1).size(), facing(before[p], -1).size());
   expect_sound(before, parts, carving);
 }
 

@@ -377,20 +377,26 @@ struct KeptAssembly {
 // grid cells:
 // - filling first: when one part Q lies in the gaps, the hull spans them, from P's first
 //   stretches to its last, and P takes it from Q (P ∪ hull, Q minus the hull);
+// - taking, where that hull would reach the outer surface: P takes what of Q lies in it
+//   (P ∪ (Q ∩ hull), Q minus the hull);
+// - then yielding: the hull spans the shorter of P's first and last groups of stretches, from
+//   epsilon_mm past its far end to the middle of the gap, and the part across the gap takes
+//   what of P lies in it;
 // - else carving: when P's stretches past the first gap (or before the last) lie inside the
 //   solid, bounded by P's interfaces only, the hull spans from the middle of the gap to
 //   epsilon_mm past them: P becomes P minus the hull, and the material removed a void, whose
 //   walls the neighbours across it keep (their triangles there face kCarvedVoid).
-// Neither ever moves the outer surface: a hull that would reach it (or, carving, a curve where
-// P meets two other parts; filling, a third part) is refused, as is one CGAL rejects, one that
-// makes a part fall apart, and one after which P has no fewer gap lines or another part more.
+// None ever moves the outer surface: a filling or carving hull that would reach it is refused
+// (so is, carving, one that reaches a curve where P meets two other parts, and, exchanging, one
+// that reaches a third part), as is one CGAL rejects, one that makes a part fall apart, and one
+// after which P has no fewer gap lines or another part more.
 // A hull whose cut float rounding breaks (a part no longer closed, or crossing itself) is tried
 // again 3 % larger, then 3 % smaller, about its centroid. A refused patch is halved, up to three
 // times. Interfaces stay shared exactly. Deterministic.
-// Filling and yielding move material between parts, which can put one in another's way: with
-// `assembly` given, such a change is kept only when plan_assembly() still finds an order (or,
-// when assembly->plan has none, leaves no more parts blocked), and assembly->plan becomes that
-// plan. (Carving only removes material: no part runs into more.)
+// Filling, taking and yielding move material between parts, which can put one in another's
+// way: with `assembly` given, such a change is kept only when plan_assembly() still finds an
+// order (or, when assembly->plan has none, leaves no more parts blocked), and assembly->plan
+// becomes that plan. (Carving only removes material: no part runs into more.)
 // Pre: parts have ids 0..n-1 in order and closed meshes with triangle_neighbor.
 // With exchange false, only carving is tried.
 Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsilon_mm,

@@ -34,12 +34,13 @@ std::int32_t sum(const std::vector<std::int32_t>& counts) {
 
 using Patch = std::vector<const detail::CarveLine*>;
 
-// How a patch is mended: the part takes the neighbour's material in its gaps, gives its stretches
-// on one side of them to the neighbour across, or loses them to a void.
-enum class Way { Fill, Yield, Carve };
-constexpr const char* kWayNames[] = {"filling", "yielding", "carving"};
+// How a patch is mended: the part takes the neighbour's material in its gaps (filling them, or,
+// where the neighbour reaches the outer surface there, taking what of it lies in the hull),
+// gives its stretches on one side of them to the neighbour across, or loses them to a void.
+enum class Way { Fill, Take, Yield, Carve };
+constexpr const char* kWayNames[] = {"filling", "taking", "yielding", "carving"};
 // The ways in the order tried.
-constexpr Way kWays[] = {Way::Fill, Way::Yield, Way::Carve};
+constexpr Way kWays[] = {Way::Fill, Way::Take, Way::Yield, Way::Carve};
 
 // Deep lines whose cells touch (also at a corner) form one patch, in the lines' order; it takes
 // the lines with shallow gaps up to kBorderRings cells around it too (not yet taken), where the
@@ -211,14 +212,17 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
         continue;  // a half with shallow gaps only
       // Filling first, then yielding, then carving; the first that leaves fewer gap lines is
       // kept.
-      std::string why;
+      std::string why, fill_refusal;
       bool done = false;
       for (const Way way : kWays) {
         if (way != Way::Carve && !exchange) continue;
+        // Taking differs from filling only where the hull reaches the outer surface.
+        if (way == Way::Take && fill_refusal != detail::kHullReachesOuterSurface) continue;
         std::int32_t other = -1;
-        const std::vector<Vec3> points =
-            way == Way::Carve ? hull_points(patch, found, epsilon_mm)
-                              : exchange_points(patch, found, way == Way::Fill, other);
+        const bool fill_hull = way == Way::Fill || way == Way::Take;
+        const std::vector<Vec3> points = way == Way::Carve
+                                             ? hull_points(patch, found, epsilon_mm)
+                                             : exchange_points(patch, found, fill_hull, other);
         std::string reason;
         std::optional<detail::CarvedHull> changed;
         if (points.empty())
@@ -229,6 +233,8 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
           const bool checked = !crossed[p] && (other < 0 || !crossed[other]);
           if (way == Way::Fill)
             changed = detail::fill_hull(parts, p, other, hull, checked, reason);
+          else if (way == Way::Take)  // the neighbour yields what of it lies in the hull
+            changed = detail::yield_hull(parts, other, p, hull, checked, reason);
           else if (way == Way::Yield)
             changed = detail::yield_hull(parts, p, other, hull, checked, reason);
           else
@@ -262,7 +268,7 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
           if (!refusal) {
             if (plan) assembly->plan = std::move(*plan);
             const double moved = tried[p].volume_mm3 - parts[p].volume_mm3;
-            if (way == Way::Fill)
+            if (way == Way::Fill || way == Way::Take)
               out.exchanges.push_back({other, p, moved});
             else if (way == Way::Yield)
               out.exchanges.push_back({p, other, -moved});
@@ -275,6 +281,7 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
           }
           reason = refusal;
         }
+        if (way == Way::Fill) fill_refusal = reason;
         why += (why.empty() ? "" : "; ") + std::string(kWayNames[static_cast<int>(way)]) + ": " +
                reason;
       }

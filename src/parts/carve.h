@@ -43,6 +43,10 @@ struct CarveLines {
 CarveLines carve_lines(const std::vector<Part>& parts, std::int32_t p, std::int64_t lines,
                        double epsilon_mm);
 
+// fill_hull()'s reason when the hull reaches the outer surface (carving then has the neighbour
+// yield what of it lies in the hull instead).
+inline constexpr const char* kHullReachesOuterSurface = "its hull would reach the outer surface";
+
 // The functions below refuse with a reason in `why`; a reason that rounding the exact result to
 // float caused ends in "once rounded" (carving then tries the hull a little larger or smaller).
 // `checked`: the parts they change are known not to intersect themselves (intersecting_triangles()

@@ -363,7 +363,7 @@ bool exchange_hull(const std::vector<Part>& parts, std::int32_t p, std::int32_t 
       if (ours && (n >= 0 || (n == -1 && !outer))) continue;
       if (hull.meets(exact_triangle(part.mesh, part.mesh.triangles[t]))) {
         why = !ours     ? "its hull would reach part " + std::to_string(k)
-              : n == -1 ? "its hull would reach the outer surface"
+              : n == -1 ? kHullReachesOuterSurface
                         : "its hull would reach a carved void";
         return false;
       }
