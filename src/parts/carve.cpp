@@ -210,8 +210,8 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
       todo.pop_front();
       if (std::none_of(patch.begin(), patch.end(), [](const auto* l) { return l->deep; }))
         continue;  // a half with shallow gaps only
-      // Filling first, then yielding, then carving; the first that leaves fewer gap lines is
-      // kept.
+      // Filling first (or taking, where filling would reach the outer surface), then yielding,
+      // then carving; the first that leaves fewer gap lines is kept.
       std::string why, fill_refusal;
       bool done = false;
       for (const Way way : kWays) {
@@ -219,10 +219,10 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
         // Taking differs from filling only where the hull reaches the outer surface.
         if (way == Way::Take && fill_refusal != detail::kHullReachesOuterSurface) continue;
         std::int32_t other = -1;
-        const bool fill_hull = way == Way::Fill || way == Way::Take;
+        const bool spans_gaps = way == Way::Fill || way == Way::Take;  // else P's short end
         const std::vector<Vec3> points = way == Way::Carve
                                              ? hull_points(patch, found, epsilon_mm)
-                                             : exchange_points(patch, found, fill_hull, other);
+                                             : exchange_points(patch, found, spans_gaps, other);
         std::string reason;
         std::optional<detail::CarvedHull> changed;
         if (points.empty())

@@ -49,8 +49,8 @@ inline constexpr const char* kHullReachesOuterSurface = "its hull would reach th
 
 // The functions below refuse with a reason in `why`; a reason that rounding the exact result to
 // float caused ends in "once rounded" (carving then tries the hull a little larger or smaller).
-// `checked`: the parts they change are known not to intersect themselves (intersecting_triangles()
-// found none), so CGAL need not check them again.
+// `checked`: the parts they change are known not to intersect themselves
+// (intersecting_triangles() found none), so CGAL need not check them again.
 
 // Part p and its neighbours once the convex hull of `hull` is carved out of p, or filled by p.
 struct CarvedHull {
