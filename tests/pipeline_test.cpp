@@ -81,7 +81,9 @@ void expect_valid_decomposition(const TriMesh& input, const Decomposition& d,
                             .cross(input.vertices[t[2]] - input.vertices[t[0]])
                             .norm();
   // Dents that folds leave in the moved regions are filled: none is left deeper than float noise.
-  if (opts.exact_outer_surface) EXPECT_EQ(d.solid_cut.uncovered_triangles, 0);
+  if (opts.exact_outer_surface) {
+    EXPECT_EQ(d.solid_cut.uncovered_triangles, 0);
+  }
   const bool all_cut = opts.exact_outer_surface && d.solid_cut.uncovered_triangles == 0 &&
                        std::find(d.solid_cut.part_cut.begin(), d.solid_cut.part_cut.end(), false) ==
                            d.solid_cut.part_cut.end();
@@ -249,8 +251,11 @@ TEST(Pipeline, ElephantAtPaperSize) {
   auto key = [](const MadeCandidate& m) {
     return std::make_tuple(!m.assembly_found, m.gap_lines, m.parts);
   };
-  for (const MadeCandidate& m : d.made_candidates)
-    if (!m.dropped) EXPECT_LE(key(kept), key(m));
+  for (const MadeCandidate& m : d.made_candidates) {
+    if (!m.dropped) {
+      EXPECT_LE(key(kept), key(m));
+    }
+  }
 
   // Each part's gaps, counted from its own boundary alone (as carving counts them), are those
   // dhf_gaps() finds tracing every part.
@@ -409,7 +414,9 @@ TEST(Pipeline, ElephantClearsAWayOverTheSphereToComeApart) {
   if (path.empty()) GTEST_SKIP() << "extended models absent (set DHFCAST_MODELS_DIR)";
   const auto [input, opts, d] = decompose_model(path, 50589);
   for (const MadeCandidate& m : d.made_candidates) {
-    if (!m.kept) EXPECT_FALSE(m.assembly_found);
+    if (!m.kept) {
+      EXPECT_FALSE(m.assembly_found);
+    }
   }
   ASSERT_TRUE(d.assembly.found) << d.assembly.message;
   bool over_sphere = false;
@@ -434,8 +441,11 @@ TEST(Pipeline, BimbaKeepsACandidateWhosePartsAreDoubleHeightFields) {
   const MadeCandidate& first = d.made_candidates.front();
   EXPECT_FALSE(first.kept);
   EXPECT_GT(first.gap_lines, 0);
-  for (const MadeCandidate& m : d.made_candidates)
-    if (m.kept) EXPECT_LT(m.gap_lines, first.gap_lines);
+  for (const MadeCandidate& m : d.made_candidates) {
+    if (m.kept) {
+      EXPECT_LT(m.gap_lines, first.gap_lines);
+    }
+  }
   EXPECT_TRUE(d.assembly.found) << d.assembly.message;
   const CheckReport report = check_written(input, opts, d, "bimba");
   expect_checks_pass(report, {"assembly", "dhf"});

@@ -606,7 +606,7 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
                             r.repair.worst_share <= kGapCandidateShare * least_share;
       if (!for_assembly && !for_gaps) continue;
     }
-    Made made{{context.make(r.label, r.region)}, ranked[k]};
+    Made made{{context.make(r.label, r.region), {}, {}}, ranked[k]};
     auto gaps_of = [&] {
       return dhf_gaps(made.stage.parts.parts, kGapLines, opts.access.epsilon_mm);
     };
