@@ -228,9 +228,9 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
         if (points.empty())
           reason = way == Way::Carve ? "the part reaches its outer surface on both sides"
                                      : "no one other part is there";
+        const bool checked = !crossed[p] && (other < 0 || !crossed[other]);
         for (int variant = 0; variant < kVariants && !points.empty(); ++variant) {
           const std::vector<Vec3> hull = varied(points, variant);
-          const bool checked = !crossed[p] && (other < 0 || !crossed[other]);
           if (way == Way::Fill)
             changed = detail::fill_hull(parts, p, other, hull, checked, reason);
           else if (way == Way::Take)  // the neighbour yields what of it lies in the hull

@@ -94,19 +94,19 @@ inline bool boolean(Boolean op, ExactMesh& a, ExactMesh& b, ExactMesh& out, std:
     visitor.split[m] = fresh_split_map(*m);
   }
   const bool check = operands == Operands::Unchecked;
-  const auto np = CGAL::parameters::visitor(visitor).throw_on_self_intersection(check);
-  const auto checked = CGAL::parameters::throw_on_self_intersection(check);
+  const auto for_a = CGAL::parameters::visitor(visitor).throw_on_self_intersection(check);
+  const auto for_b = CGAL::parameters::throw_on_self_intersection(check);
   bool built = false;
   try {
     switch (op) {
       case Boolean::Intersection:
-        built = PMP::corefine_and_compute_intersection(a, b, out, np, checked);
+        built = PMP::corefine_and_compute_intersection(a, b, out, for_a, for_b);
         break;
       case Boolean::Union:
-        built = PMP::corefine_and_compute_union(a, b, out, np, checked);
+        built = PMP::corefine_and_compute_union(a, b, out, for_a, for_b);
         break;
       case Boolean::Difference:
-        built = PMP::corefine_and_compute_difference(a, b, out, np, checked);
+        built = PMP::corefine_and_compute_difference(a, b, out, for_a, for_b);
         break;
     }
   } catch (const PMP::Corefinement::Self_intersection_exception&) {
