@@ -1824,6 +1824,47 @@ TEST(CarveDhfGaps, AHullGivesTheSamePartsWhateverOrderItsPointsComeIn) {
   }
 }
 
+// A 60 x 30 x 30 mm box: part P (label 0) a rod of five 10 mm cells along x through its middle,
+// from the x = 0 side; part R (label 2) the cell on the rod's last; part Q (label 1) the rest.
+int rod_under_a_cap(const Cell& c) {
+  if (c[1] == 1 && c[2] == 1 && c[0] <= 4) return 0;
+  return c[0] == 4 && c[1] == 1 && c[2] == 2 ? 2 : 1;
+}
+
+TEST(CarveDhfGaps, APieceAnExchangeCutsOffGoesToThePartAroundIt) {
+  const Grid g = make_grid(6, 3, 3, 10.0);
+  const std::vector<Part> before =
+      extract_parts(g.mesh, per_cell(g, rod_under_a_cap), zeros(g), {{kZ, kX, kY}});
+  ASSERT_EQ(before.size(), 3u);
+  std::array<std::int32_t, 3> id{};  // by label
+  for (const Part& part : before) id[part.direction_index] = part.id;
+  const std::int32_t p = id[0], q = id[1], r = id[2];
+  // P yields Q a slab across the rod's fourth cell (x 30.5 to 39.5, reaching into Q around the
+  // rod but not R): what is left of P beyond it, the last cell and a half-millimetre, touches
+  // only Q and R.
+  std::vector<Vec3> slab;
+  for (double x : {30.5, 39.5})
+    for (double y : {9.0, 21.0})
+      for (double z : {9.0, 21.0}) slab.emplace_back(x, y, z);
+  std::string why;
+  const std::optional<detail::CarvedHull> yielded =
+      detail::yield_hull(before, p, q, slab, true, why);
+  ASSERT_TRUE(yielded) << why;
+  std::vector<Part> after = before;
+  for (const auto& [k, part] : yielded->changed) after[k] = part;
+  // P keeps the rod up to x = 30.5; Q takes the slab and the piece beyond it; R, untouched,
+  // now faces Q where it faced P.
+  EXPECT_NEAR(after[p].volume_mm3, 30.5 * 100.0, 1e-6);
+  EXPECT_NEAR(after[q].volume_mm3, before[q].volume_mm3 + 19.5 * 100.0, 1e-6);
+  ASSERT_EQ(yielded->changed.size(), 3u);
+  EXPECT_EQ(yielded->changed[2].first, r);
+  EXPECT_EQ(after[r].mesh.vertices, before[r].mesh.vertices);
+  EXPECT_EQ(after[r].mesh.triangles, before[r].mesh.triangles);
+  EXPECT_TRUE(facing(after[r], p).empty());
+  EXPECT_FALSE(facing(after[r], q).empty());
+  expect_sound(before, after, Carving{});
+}
+
 TEST(CarveDhfGaps, JawsOnTheOuterSurfaceAreNotCarvedButOneGoesToThePartBetweenThem) {
   const Grid g = make_grid(4, 3, 3, 10.0);
   const std::vector<std::vector<Vec3>> dirs{{kZ, kX}};

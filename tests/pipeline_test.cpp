@@ -5,6 +5,8 @@
 #include <oneapi/tbb/global_control.h>
 
 #include <algorithm>
+#include <array>
+#include <map>
 #include <numeric>
 #include <set>
 #include <string>
@@ -35,6 +37,24 @@ struct Model {
   std::string path;
   double diag_mm;  // scale to this bounding-box diagonal (0: keep)
 };
+
+// Corners of a part's triangles facing a neighbour that the neighbour's triangles facing it
+// lack, over all parts: where the two would not fit exactly.
+std::int32_t unshared_interface_corners(const std::vector<Part>& parts) {
+  auto key = [](const Vec3& v) { return std::array<double, 3>{v.x(), v.y(), v.z()}; };
+  std::map<std::array<std::int32_t, 2>, std::set<std::array<double, 3>>> corners;  // {part, across}
+  for (const Part& p : parts)
+    for (std::size_t t = 0; t < p.mesh.triangles.size(); ++t)
+      if (p.triangle_neighbor[t] >= 0)
+        for (std::int32_t v : p.mesh.triangles[t])
+          corners[{p.id, p.triangle_neighbor[t]}].insert(key(p.mesh.vertices[v]));
+  std::int32_t unshared = 0;
+  for (const auto& [pair, mine] : corners) {
+    const auto theirs = corners.find({pair[1], pair[0]});
+    for (const auto& c : mine) unshared += theirs == corners.end() || !theirs->second.contains(c);
+  }
+  return unshared;
+}
 
 // max_smoothed_to_raw: the largest allowed ratio of the smoothed interfaces' area-weighted mean
 // normal angle to the raw tet faces' one. Coarse tet meshes leave seams less room to move.
@@ -100,6 +120,12 @@ void expect_valid_decomposition(const TriMesh& input, const Decomposition& d,
       outer.resize(std::min<std::size_t>(outer.size(), 300));
       // Float precision: the points are rounded as the STL output holds them.
       EXPECT_LE(test::max_distance_to_surface(outer, input), 1e-4) << "part " << p.id;
+    }
+    // Neighbours share every corner of their interface, also where the cut left seam vertices
+    // a hair apart (where a region that touched itself at a corner was moved apart); but where
+    // a filled dent meets a neighbour, the two triangulate the same surface apart.
+    if (d.solid_cut.filled_dents == 0) {
+      EXPECT_EQ(unshared_interface_corners(d.parts), 0);
     }
   } else if (!opts.exact_outer_surface) {
     EXPECT_NEAR(parts_volume, tet_volume, 1e-3 * tet_volume);
@@ -426,6 +452,11 @@ TEST(Pipeline, ElephantClearsAWayOverTheSphereToComeApart) {
   }
   EXPECT_TRUE(over_sphere);
   EXPECT_EQ(d.way_clearings.back().blocked_after, 0);
+  // The cut leaves seam vertices a hair apart here (a region touched itself at corners near
+  // the seam); once they are closed, neighbours share every corner of their interface.
+  EXPECT_GT(d.solid_cut.closed_seam_hairs, 0);
+  EXPECT_EQ(d.solid_cut.filled_dents, 0);
+  EXPECT_EQ(unshared_interface_corners(d.parts), 0);
   expect_checks_pass(check_written(input, opts, d, "elephant-paper"), {"assembly"});
 }
 

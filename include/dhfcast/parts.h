@@ -235,6 +235,9 @@ struct SolidCut {
   // neighbour's direction: the cut leaves nothing of them), and the others were renumbered.
   std::int32_t dropped_parts = 0;
   std::vector<std::int32_t> dropped_tets;  // ascending
+  // Seam vertices the cut left a few micrometres from the neighbour's (where a region that
+  // touched itself at a corner was moved apart there by a hair) and that moved onto it.
+  std::int32_t closed_seam_hairs = 0;
 };
 
 // Makes the parts' outer surfaces the input surface itself (the tet mesh only decides who owns
@@ -246,11 +249,13 @@ struct SolidCut {
 // alike in every part. Interfaces keep their triangles, cut where they meet the input surface;
 // neighbouring parts are cut by the same exact curve, so rounded to double they still share
 // their vertices and triangles (except where a filled dent meets a neighbour: the same surface,
-// triangulated apart). A part that intersects itself, or whose region CGAL rejects, is
-// left as it is, marked in SolidCut::part_cut and SolidCut::problem. A part that is empty once
-// cut is dropped (see SolidCut::dropped_parts) and the parts renumbered. triangle_neighbor and
-// volume_mm3 are updated. Deterministic, in a canonical vertex and triangle order.
-// Pre: `parts` is extract_parts()/smooth_interfaces() output of a tet mesh of `solid`.
+// triangulated apart; and where a part touching itself at a corner was moved apart there by a
+// hair: the seam vertices the cut leaves a few micrometres from the neighbour's then move onto
+// them, see SolidCut::closed_seam_hairs). A part that intersects itself, or whose region CGAL
+// rejects, is left as it is, marked in SolidCut::part_cut and SolidCut::problem. A part that is
+// empty once cut is dropped (see SolidCut::dropped_parts) and the parts renumbered.
+// triangle_neighbor and volume_mm3 are updated. Deterministic, in a canonical vertex and triangle
+// order. Pre: `parts` is extract_parts()/smooth_interfaces() output of a tet mesh of `solid`.
 SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts);
 
 // How smooth one interface between two parts is: the angles between the normals of
@@ -389,7 +394,9 @@ struct KeptAssembly {
 // None ever moves the outer surface: a filling or carving hull that would reach it is refused
 // (so is, carving, one that reaches a curve where P meets two other parts, and, exchanging, one
 // that reaches a third part), as is one CGAL rejects, one that makes a part fall apart, and one
-// after which P has no fewer gap lines or another part more.
+// after which P has no fewer gap lines or another part more. Where an exchange cuts pieces off
+// a part, those that touch the other part go to it as well (a third part across them then faces
+// it); a part falls apart only when one does not.
 // A hull whose cut float rounding breaks (a part no longer closed, or crossing itself) is tried
 // again 3 % larger, then 3 % smaller, about its centroid. A refused patch is halved, up to three
 // times. Interfaces stay shared exactly. Deterministic.

@@ -218,8 +218,9 @@ bool make_hull(const std::vector<Vec3>& points, Hull& hull) {
 }
 
 // Whether every directed edge of the mesh has exactly one opposite, and how many pieces
-// (triangles connected through edges) it has.
-bool closed(const TriMesh& m, std::int32_t& pieces) {
+// (triangles connected through edges) it has; with each triangle's piece (numbered in the order
+// of their first triangles) when asked.
+bool closed(const TriMesh& m, std::int32_t& pieces, std::vector<std::int32_t>* piece = nullptr) {
   std::map<std::pair<std::int32_t, std::int32_t>, std::int32_t> edges;  // directed -> triangle
   for (std::size_t t = 0; t < m.triangles.size(); ++t)
     for (int k = 0; k < 3; ++k)
@@ -240,8 +241,12 @@ bool closed(const TriMesh& m, std::int32_t& pieces) {
     root[find(t)] = find(opposite->second);
   }
   pieces = 0;
-  for (std::size_t t = 0; t < root.size(); ++t)
-    pieces += static_cast<std::size_t>(find(static_cast<std::int32_t>(t))) == t;
+  std::vector<std::int32_t> number(root.size(), -1);
+  for (std::size_t t = 0; t < root.size(); ++t) {
+    std::int32_t& n = number[find(static_cast<std::int32_t>(t))];
+    if (n < 0) n = pieces++;
+    if (piece) piece->push_back(n);
+  }
   return true;
 }
 
@@ -300,6 +305,81 @@ std::multiset<std::array<Vec3, 3>, CornersLess> facing(const TriMesh& m,
   return out;
 }
 
+// A part's mesh with the part across each triangle.
+struct Sided {
+  TriMesh mesh;
+  std::vector<std::int32_t> neighbor;
+};
+
+// A triangle's corners from its smallest, reversed when asked.
+std::array<Vec3, 3> corners_of(const TriMesh& m, const Tri& t, bool reversed) {
+  std::array<Vec3, 3> c{m.vertices[t[0]], m.vertices[t[1]], m.vertices[t[2]]};
+  if (reversed) std::swap(c[1], c[2]);
+  std::rotate(c.begin(), std::min_element(c.begin(), c.end(), VecLess()), c.end());
+  return c;
+}
+
+// Where an exchange cut part a into pieces, a's pieces but its largest go to part b when they
+// share an interface with it: b loses its triangles there and takes the piece's others, and a
+// third part across the piece then faces b (in `third`, a copy of it). False when a piece
+// meets no b or bounds a cavity, or a part is not closed.
+bool hand_over_pieces(const std::vector<Part>& parts, std::int32_t a_id, Sided& a,
+                      std::int32_t b_id, Sided& b, std::map<std::int32_t, Part>& third) {
+  std::int32_t count = 0;
+  std::vector<std::int32_t> piece;
+  if (!closed(a.mesh, count, &piece)) return false;
+  if (count == 1) return true;
+  std::vector<double> volume(count, 0.0);
+  for (std::size_t t = 0; t < a.mesh.triangles.size(); ++t) {
+    const Tri& tri = a.mesh.triangles[t];
+    volume[piece[t]] +=
+        a.mesh.vertices[tri[0]].dot(a.mesh.vertices[tri[1]].cross(a.mesh.vertices[tri[2]]));
+  }
+  const std::int32_t largest =
+      static_cast<std::int32_t>(std::max_element(volume.begin(), volume.end()) - volume.begin());
+  std::vector<char> meets_b(count, 0);
+  for (std::size_t t = 0; t < a.mesh.triangles.size(); ++t)
+    if (a.neighbor[t] == b_id) meets_b[piece[t]] = 1;
+  for (std::int32_t k = 0; k < count; ++k)
+    if (k != largest && (!meets_b[k] || volume[k] <= 0.0)) return false;
+  // The handed pieces' triangles facing b (as b has them), and those facing a third part (as
+  // it has them).
+  std::set<std::array<Vec3, 3>, CornersLess> shared;
+  std::map<std::int32_t, std::set<std::array<Vec3, 3>, CornersLess>> across;
+  MeshBuilder kept, grown;
+  for (std::size_t t = 0; t < a.mesh.triangles.size(); ++t) {
+    const Tri& tri = a.mesh.triangles[t];
+    const std::int32_t n = a.neighbor[t];
+    if (piece[t] == largest) {
+      kept.add(a.mesh, tri, false, n);
+      continue;
+    }
+    if (n == b_id) {
+      shared.insert(corners_of(a.mesh, tri, true));
+      continue;
+    }
+    grown.add(a.mesh, tri, false, n);
+    if (n >= 0) across[n].insert(corners_of(a.mesh, tri, true));
+  }
+  for (std::size_t t = 0; t < b.mesh.triangles.size(); ++t)
+    if (b.neighbor[t] != a_id || !shared.contains(corners_of(b.mesh, b.mesh.triangles[t], false)))
+      grown.add(b.mesh, b.mesh.triangles[t], false, b.neighbor[t]);
+  for (const auto& [k, faces] : across) {
+    Part& other = third.try_emplace(k, parts[k]).first->second;
+    std::size_t found = 0;
+    for (std::size_t t = 0; t < other.mesh.triangles.size(); ++t)
+      if (other.triangle_neighbor[t] == a_id &&
+          faces.contains(corners_of(other.mesh, other.mesh.triangles[t], false))) {
+        other.triangle_neighbor[t] = b_id;
+        ++found;
+      }
+    if (found != faces.size()) return false;  // the part across triangulates it otherwise
+  }
+  a = {std::move(kept.mesh), std::move(kept.neighbor)};
+  b = {std::move(grown.mesh), std::move(grown.neighbor)};
+  return true;
+}
+
 // Parts p and q once they exchanged material, from the booleans' results (face origins: the
 // part across). The two results can triangulate their new interface differently (CGAL's
 // choices); q then takes p's triangles there (reversed) in place of its own. Refused (the
@@ -322,19 +402,24 @@ std::optional<CarvedHull> exchanged(const std::vector<Part>& parts, std::int32_t
     why = "a part is empty or not closed once rounded";
     return std::nullopt;
   }
-  if (p_pieces != 1 || q_pieces != 1) {
+  Sided p_side{std::move(p_mesh), std::move(p_neighbor)},
+      q_side{std::move(b.mesh), std::move(b.neighbor)};
+  std::map<std::int32_t, Part> third;
+  if (!hand_over_pieces(parts, p, p_side, q, q_side, third) ||
+      !hand_over_pieces(parts, q, q_side, p, p_side, third) || !closed(p_side.mesh, p_pieces) ||
+      !closed(q_side.mesh, q_pieces) || p_pieces != 1 || q_pieces != 1) {
     why = "a part would fall apart";
     return std::nullopt;
   }
   CarvedHull out;
-  for (auto [k, mesh, neighbor] :
-       {std::tuple{p, &p_mesh, &p_neighbor}, std::tuple{q, &b.mesh, &b.neighbor}}) {
+  for (auto [k, side] : {std::pair{p, &p_side}, std::pair{q, &q_side}}) {
     Part changed = parts[k];
-    changed.mesh = std::move(*mesh);
-    changed.triangle_neighbor = std::move(*neighbor);
+    changed.mesh = std::move(side->mesh);
+    changed.triangle_neighbor = std::move(side->neighbor);
     changed.volume_mm3 = signed_volume(changed.mesh);
     out.changed.emplace_back(k, std::move(changed));
   }
+  for (auto& [k, part] : third) out.changed.emplace_back(k, std::move(part));
   return out;
 }
 

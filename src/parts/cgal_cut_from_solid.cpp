@@ -484,6 +484,72 @@ std::optional<ExactMesh> fill_dents(
   return grown;
 }
 
+// Seam vertices that the cut left a little apart in two neighbouring parts, where
+// separate_pinches() moved a region's corner by a hair: the later part's vertex moves onto the
+// earlier part's nearest one within `radius` (and the other way round nearest), when only the
+// two parts and the outer surface meet at both and the part stays free of self-intersections
+// and of flat triangles. Both lie on the input surface, so the outer surface stays on it; the
+// parts' interface then matches vertex for vertex and the seam closes. Returns how many moved.
+std::int32_t close_seam_hairs(std::vector<Part>& parts, double radius) {
+  std::int32_t closed = 0;
+  for (std::size_t j = 1; j < parts.size(); ++j) {
+    Part& part = parts[j];
+    if (!intersecting_triangles(part.mesh, 1).empty()) continue;
+    // The parts each vertex's triangles face, by position (a part has one vertex per position).
+    auto facing = [](const Part& p) {
+      std::map<Vec3, std::set<std::int32_t>, VecLess> out;
+      for (std::size_t t = 0; t < p.mesh.triangles.size(); ++t)
+        for (std::int32_t v : p.mesh.triangles[t])
+          out[p.mesh.vertices[v]].insert(p.triangle_neighbor[t]);
+      return out;
+    };
+    const auto faces_of_j = facing(part);
+    std::map<Vec3, Vec3, VecLess> moves;
+    for (std::size_t i = 0; i < j; ++i) {
+      const auto faces_of_i = facing(parts[i]);
+      // Vertices on the i|j interface that the other part lacks, whose triangles face only the
+      // other part and the outside.
+      auto unmatched = [](const auto& mine, const auto& theirs, std::int32_t other) {
+        std::vector<Vec3> out;
+        for (const auto& [p, across] : mine)
+          if (across.contains(other) && !theirs.contains(p) &&
+              std::all_of(across.begin(), across.end(),
+                          [&](std::int32_t n) { return n == other || n < 0; }))
+            out.push_back(p);
+        return out;
+      };
+      const std::vector<Vec3> ours =
+          unmatched(faces_of_j, faces_of_i, static_cast<std::int32_t>(i));
+      if (ours.empty()) continue;
+      const std::vector<Vec3> theirs =
+          unmatched(faces_of_i, faces_of_j, static_cast<std::int32_t>(j));
+      auto nearest = [&](const Vec3& p, const std::vector<Vec3>& among) {
+        const Vec3* best = nullptr;
+        for (const Vec3& q : among)
+          if ((q - p).norm() < radius && (!best || (q - p).norm() < (*best - p).norm())) best = &q;
+        return best;
+      };
+      for (const Vec3& p : ours)
+        if (const Vec3* q = nearest(p, theirs); q && nearest(*q, ours) == &p) moves.emplace(p, *q);
+    }
+    if (moves.empty()) continue;
+    TriMesh moved = part.mesh;
+    for (Vec3& v : moved.vertices)
+      if (const auto it = moves.find(v); it != moves.end()) v = it->second;
+    const bool flat =
+        std::any_of(moved.triangles.begin(), moved.triangles.end(), [&](const Tri& t) {
+          const Vec3 &a = moved.vertices[t[0]], &b = moved.vertices[t[1]],
+                     &c = moved.vertices[t[2]];
+          return (b - a).cross(c - a).norm() == 0.0;
+        });
+    if (flat || !intersecting_triangles(moved, 1).empty()) continue;
+    part.mesh = std::move(moved);
+    part.volume_mm3 = signed_volume(part.mesh);
+    closed += static_cast<std::int32_t>(moves.size());
+  }
+  return closed;
+}
+
 }  // namespace
 
 SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
@@ -510,6 +576,8 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   using Pairs = std::vector<std::array<std::int32_t, 2>>;
   std::vector<Pairs> own(n);  // pairs that crossed before moving: the part's own
   const double hair = 1e-5 * diagonal;
+  // Seam vertices this many hairs apart in neighbouring parts come from a moved pinch.
+  constexpr double kSeamHairs = 10.0;
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
     TriMesh separated = parts[i].mesh;
     separate_pinches(separated, hair);
@@ -686,6 +754,7 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   }
   std::sort(kept_cut.dropped_tets.begin(), kept_cut.dropped_tets.end());
   parts = std::move(kept);
+  kept_cut.closed_seam_hairs = close_seam_hairs(parts, kSeamHairs * hair);
   return kept_cut;
 }
 

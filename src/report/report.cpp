@@ -237,7 +237,8 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
     j["outer_surface_cut"] = {{"push_mm", d.solid_cut.push_mm},
                               {"uncovered_triangles", d.solid_cut.uncovered_triangles},
                               {"filled_dents", d.solid_cut.filled_dents},
-                              {"dropped_parts", d.solid_cut.dropped_parts}};
+                              {"dropped_parts", d.solid_cut.dropped_parts},
+                              {"closed_seam_hairs", d.solid_cut.closed_seam_hairs}};
 
   // Normal angles between neighbouring interface triangles, before and after smoothing.
   auto smoothness = [](const InterfaceSmoothness& s) {
