@@ -494,7 +494,6 @@ std::int32_t close_seam_hairs(std::vector<Part>& parts, double radius) {
   std::int32_t closed = 0;
   for (std::size_t j = 1; j < parts.size(); ++j) {
     Part& part = parts[j];
-    if (!intersecting_triangles(part.mesh, 1).empty()) continue;
     // The parts each vertex's triangles face, by position (a part has one vertex per position).
     auto facing = [](const Part& p) {
       std::map<Vec3, std::set<std::int32_t>, VecLess> out;
@@ -532,7 +531,11 @@ std::int32_t close_seam_hairs(std::vector<Part>& parts, double radius) {
       for (const Vec3& p : ours)
         if (const Vec3* q = nearest(p, theirs); q && nearest(*q, ours) == &p) moves.emplace(p, *q);
     }
-    if (moves.empty()) continue;
+    std::set<Vec3, VecLess> targets;
+    for (const auto& [from, to] : moves) targets.insert(to);
+    if (moves.empty() || targets.size() != moves.size() ||
+        !intersecting_triangles(part.mesh, 1).empty())
+      continue;
     TriMesh moved = part.mesh;
     for (Vec3& v : moved.vertices)
       if (const auto it = moves.find(v); it != moves.end()) v = it->second;
