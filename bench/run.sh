@@ -32,8 +32,8 @@ declare -A paper=(
 
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
-printf '%-15s %7s %7s %6s %6s %6s %6s %6s %6s %5s %5s %6s %-24s | %7s %5s %5s %5s %5s\n' \
-  model tris tets load tets_s access segm parts total parts cut chk_s check p.tets p.DHF p.sol p.prt p.#
+printf '%-15s %7s %7s %6s %6s %6s %6s %6s %6s %5s %5s %6s %5s %-24s | %7s %5s %5s %5s %5s\n' \
+  model tris tets load tets_s access segm parts total parts cut chk_s dhf% check p.tets p.DHF p.sol p.prt p.#
 for m in $models; do
   f="$models_dir/$m.stl"
   [ -f "$f" ] || { echo "bench: skip $m (no $f)" >&2; continue; }
@@ -61,13 +61,17 @@ check_s = float(sys.argv[6]) - float(sys.argv[5])
 checks = json.load(open(f"{tmp}/{m}-check.json"))["checks"]
 failed = [c["name"] for c in checks if c["status"] == "fail"]
 verdict = "PASS" if not failed else "FAIL:" + ",".join(failed)
+# The worst part's share of the check's lines that cross a gap deeper than epsilon.
+dhf = next(c for c in checks if c["name"] == "dhf")
+dhf_share = f"{100 * dhf['figures']['max_violation_fraction']:.2f}" if "figures" in dhf else "-"
 docs = [json.load(open(f"{tmp}/{m}-{r}/decomposition.json")) for r in range(1, runs + 1)]
 med = lambda k: statistics.median(d["timings_s"][k] for d in docs)
 d = docs[0]
 cut = f"{sum(1 for p in d['parts'] if p.get('cut_from_input'))}/{len(d['parts'])}"
 print(f"{m:<15} {d['input']['triangles']:7d} {d['tetrahedra']:7d} {med('load'):6.1f} "
       f"{med('tetrahedralize'):6.1f} {med('accessibility'):6.1f} {med('segmentation'):6.1f} "
-      f"{med('parts'):6.1f} {med('total'):6.1f} {len(d['parts']):5d} {cut:>5} {check_s:6.1f} {verdict:<24} | "
+      f"{med('parts'):6.1f} {med('total'):6.1f} {len(d['parts']):5d} {cut:>5} {check_s:6.1f} "
+      f"{dhf_share:>5} {verdict:<24} | "
       + " ".join(f"{x:>5}" for x in paper))
 PY
 done
