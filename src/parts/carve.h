@@ -53,6 +53,8 @@ inline constexpr const char* kHullReachesOuterSurface = "its hull would reach th
 // (intersecting_triangles() found none), so CGAL need not check them again.
 
 // Part p and its neighbours once the convex hull of `hull` is carved out of p, or filled by p.
+// An exchange (filling, yielding) that cuts pieces off one of its two parts gives them to the
+// other when they touch it; a third part across them is then among the changed, facing it.
 struct CarvedHull {
   std::vector<std::pair<std::int32_t, Part>> changed;  // (id, new part), p first
   CarvedVoid hole;                                     // carving only

@@ -12,7 +12,7 @@
 #include <numeric>
 #include <set>
 #include <string>
-#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "carve.h"
@@ -382,8 +382,9 @@ bool hand_over_pieces(const std::vector<Part>& parts, std::int32_t a_id, Sided& 
 
 // Parts p and q once they exchanged material, from the booleans' results (face origins: the
 // part across). The two results can triangulate their new interface differently (CGAL's
-// choices); q then takes p's triangles there (reversed) in place of its own. Refused (the
-// reason in `why`) when a part is empty, not closed once rounded, or falls apart.
+// choices); q then takes p's triangles there (reversed) in place of its own. Pieces cut off
+// either part go to the other (hand_over_pieces()). Refused (the reason in `why`) when a part
+// is empty, not closed once rounded, or falls apart all the same.
 std::optional<CarvedHull> exchanged(const std::vector<Part>& parts, std::int32_t p, std::int32_t q,
                                     ExactMesh& p_result, ExactMesh& q_result, std::string& why) {
   auto [p_mesh, p_neighbor] = canonical(p_result, q);
