@@ -288,20 +288,22 @@ struct MeshBuilder {
   }
 };
 
+// A triangle's corners from its smallest, reversed when asked.
+std::array<Vec3, 3> corners_of(const TriMesh& m, const Tri& t, bool reversed) {
+  std::array<Vec3, 3> c{m.vertices[t[0]], m.vertices[t[1]], m.vertices[t[2]]};
+  if (reversed) std::swap(c[1], c[2]);
+  std::rotate(c.begin(), std::min_element(c.begin(), c.end(), VecLess()), c.end());
+  return c;
+}
+
 // The triangles of a mesh that face part n, as corner positions from the smallest corner,
 // reversed when asked.
 std::multiset<std::array<Vec3, 3>, CornersLess> facing(const TriMesh& m,
                                                        const std::vector<std::int32_t>& neighbor,
                                                        std::int32_t n, bool reversed) {
   std::multiset<std::array<Vec3, 3>, CornersLess> out;
-  for (std::size_t t = 0; t < m.triangles.size(); ++t) {
-    if (neighbor[t] != n) continue;
-    std::array<Vec3, 3> c{m.vertices[m.triangles[t][0]], m.vertices[m.triangles[t][1]],
-                          m.vertices[m.triangles[t][2]]};
-    if (reversed) std::swap(c[1], c[2]);
-    std::rotate(c.begin(), std::min_element(c.begin(), c.end(), VecLess()), c.end());
-    out.insert(c);
-  }
+  for (std::size_t t = 0; t < m.triangles.size(); ++t)
+    if (neighbor[t] == n) out.insert(corners_of(m, m.triangles[t], reversed));
   return out;
 }
 
@@ -310,14 +312,6 @@ struct Sided {
   TriMesh mesh;
   std::vector<std::int32_t> neighbor;
 };
-
-// A triangle's corners from its smallest, reversed when asked.
-std::array<Vec3, 3> corners_of(const TriMesh& m, const Tri& t, bool reversed) {
-  std::array<Vec3, 3> c{m.vertices[t[0]], m.vertices[t[1]], m.vertices[t[2]]};
-  if (reversed) std::swap(c[1], c[2]);
-  std::rotate(c.begin(), std::min_element(c.begin(), c.end(), VecLess()), c.end());
-  return c;
-}
 
 // Where an exchange cut part a into pieces, a's pieces but its largest go to part b when they
 // share an interface with it: b loses its triangles there and takes the piece's others, and a

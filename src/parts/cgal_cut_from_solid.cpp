@@ -491,21 +491,23 @@ std::optional<ExactMesh> fill_dents(
 // and of flat triangles. Both lie on the input surface, so the outer surface stays on it; the
 // parts' interface then matches vertex for vertex and the seam closes. Returns how many moved.
 std::int32_t close_seam_hairs(std::vector<Part>& parts, double radius) {
+  // The parts each vertex's triangles face, by position (a part has one vertex per position).
+  auto facing = [](const Part& p) {
+    std::map<Vec3, std::set<std::int32_t>, VecLess> out;
+    for (std::size_t t = 0; t < p.mesh.triangles.size(); ++t)
+      for (std::int32_t v : p.mesh.triangles[t])
+        out[p.mesh.vertices[v]].insert(p.triangle_neighbor[t]);
+    return out;
+  };
+  std::vector<std::map<Vec3, std::set<std::int32_t>, VecLess>> faces;
+  for (const Part& p : parts) faces.push_back(facing(p));
   std::int32_t closed = 0;
   for (std::size_t j = 1; j < parts.size(); ++j) {
     Part& part = parts[j];
-    // The parts each vertex's triangles face, by position (a part has one vertex per position).
-    auto facing = [](const Part& p) {
-      std::map<Vec3, std::set<std::int32_t>, VecLess> out;
-      for (std::size_t t = 0; t < p.mesh.triangles.size(); ++t)
-        for (std::int32_t v : p.mesh.triangles[t])
-          out[p.mesh.vertices[v]].insert(p.triangle_neighbor[t]);
-      return out;
-    };
-    const auto faces_of_j = facing(part);
+    const auto& faces_of_j = faces[j];
     std::map<Vec3, Vec3, VecLess> moves;
     for (std::size_t i = 0; i < j; ++i) {
-      const auto faces_of_i = facing(parts[i]);
+      const auto& faces_of_i = faces[i];
       // Vertices on the i|j interface that the other part lacks, whose triangles face only the
       // other part and the outside.
       auto unmatched = [](const auto& mine, const auto& theirs, std::int32_t other) {
@@ -548,6 +550,7 @@ std::int32_t close_seam_hairs(std::vector<Part>& parts, double radius) {
     if (flat || !intersecting_triangles(moved, 1).empty()) continue;
     part.mesh = std::move(moved);
     part.volume_mm3 = signed_volume(part.mesh);
+    faces[j] = facing(part);  // later parts meet its corners where they are now
     closed += static_cast<std::int32_t>(moves.size());
   }
   return closed;
