@@ -1417,6 +1417,42 @@ TEST(CutPartsFromSolid, OuterSurfaceIsTheInputAndInterfacesStayShared) {
   EXPECT_TRUE(sides[0] == sides[1]);
 }
 
+// A part touching itself along an edge of the outer surface, with a neighbour between its two
+// sheets that reaches the surface only along that edge: 3x3x3 unit cells without the column
+// x, z in [2, 3] (air). In the middle layer along y, P's cells (1, 1, 2) and (2, 1, 1) meet
+// along the edge x = z = 2 only, Q's cell (1, 1, 1) between them below; elsewhere P joins them
+// up. Extracting P splits one sheet at the edge's midpoint, so across the seam on the surface no
+// outer edge runs from end to end. The cut used to stop there on the missing edge ("internal:
+// map::at", CGAL's elephant at 8000 tets); now Q is cut and P, whose two sheets still touch
+// along the edge, keeps its own surface (which here is the input's) and says why.
+TEST(CutPartsFromSolid, PartTouchingItselfAlongAnOuterEdgeDoesNotStopTheCut) {
+  const std::vector<double> c = {0.0, 1.0, 2.0, 3.0};
+  const test::GridFilled filled = [](int i, int, int k) { return !(i == 2 && k == 2); };
+  const TetMesh tets = test::grid_tets(c, c, c, filled);
+  std::vector<std::int32_t> label(tets.tets.size(), 0);
+  for (std::size_t t = 0; t < tets.tets.size(); ++t) {
+    Vec3 centre = Vec3::Zero();
+    for (std::int32_t v : tets.tets[t]) centre += 0.25 * tets.vertices[v];
+    if (centre.x() > 1.0 && centre.x() < 2.0 && centre.y() > 1.0 && centre.y() < 2.0 &&
+        centre.z() > 1.0 && centre.z() < 2.0)
+      label[t] = 1;
+  }
+  std::vector<Part> parts = extract_parts(tets, label, zeros_like(tets), {{kX, kZ}});
+  ASSERT_EQ(parts.size(), 2u);
+  ASSERT_EQ(count_vertices_at(parts[0].mesh, Vec3(2.0, 1.5, 2.0)), 1);  // the midpoint
+
+  const TriMesh solid = test::grid_surface(c, c, c, filled);
+  const SolidCut cut = cut_parts_from_solid(solid, parts);
+  ASSERT_EQ(parts.size(), 2u);
+  EXPECT_EQ(cut.part_cut, (std::vector<bool>{false, true}));
+  EXPECT_NE(cut.problem[0].find("intersects itself"), std::string::npos) << cut.problem[0];
+  for (const Part& p : parts) EXPECT_EQ(test::solid_topology_problem(p.mesh), "") << p.id;
+  EXPECT_NEAR(parts[0].volume_mm3, 23.0, 1e-9);
+  // Q's corners on the edge move out a hair with P's, so its side tilts by about that much.
+  EXPECT_NEAR(parts[1].volume_mm3, 1.0, 1e-3);
+  EXPECT_EQ(cut.uncovered_triangles, 0);
+}
+
 // --- clearing a blocked part's way ---
 
 // A 3x3x3 box locked together: part P (label 0, leaves along z) is the middle layer but for

@@ -267,7 +267,7 @@ Region moved_region(const Part& part, const PointMap& dirs, const LengthMap& pus
     add(out[tri[0]], out[tri[1]], out[tri[2]], -1);
     for (int k = 0; k < 3; ++k) {
       const std::int32_t a = tri[k], b = tri[(k + 1) % 3];
-      if (!across.contains({b, a})) continue;
+      if (!across.contains({b, a}) || (out[a] == a && out[b] == b)) continue;  // no wall
       // The part across the seam on the surface: not always the one across the interface.
       const std::int32_t x = owner.at(edge_key(m.vertices[b], m.vertices[a]));
       // The wall a, b, b', a': split along the same diagonal in both parts it bounds.
@@ -593,10 +593,17 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   // seam vertex of the crossing triangles splits, once; one split already joins again; any other
   // moves half as far. Splitting only there keeps the cut away from seams elsewhere: it would
   // pass within a float step of them.
-  const LengthMap seams = seam_insets(parts, outer);
+  LengthMap seams = seam_insets(parts, outer);
+  const EdgeOwners owner = outer_edge_owners(parts);
+  // A seam edge whose other side on the surface is no outer edge (a part touching itself along
+  // it, one sheet split at the edge's midpoint) has no part to give a wall: its ends never split.
+  for (const auto& [key, part] : owner)
+    if (!owner.contains({key[3], key[4], key[5], key[0], key[1], key[2]})) {
+      seams.erase(Vec3(key[0], key[1], key[2]));
+      seams.erase(Vec3(key[3], key[4], key[5]));
+    }
   LengthMap inset;                // the seam vertices split now
   std::set<Vec3, VecLess> tried;  // and those split before
-  const EdgeOwners owner = outer_edge_owners(parts);
   std::vector<Region> regions(n);
   constexpr int kHalvings = 12;
   std::vector<char> folds(n, 0);
