@@ -149,13 +149,33 @@ void separate_pinches(TriMesh& m, double hair) {
         if (toward[v].norm() > 0.0) m.vertices[v] = p + hair * toward[v].normalized();
 }
 
+// Directed outer edges (by their ends' positions) and the part whose outer triangle has them.
+using EdgeKey = std::array<double, 6>;
+EdgeKey edge_key(const Vec3& a, const Vec3& b) {
+  return {a.x(), a.y(), a.z(), b.x(), b.y(), b.z()};
+}
+using EdgeOwners = std::map<EdgeKey, std::int32_t>;
+EdgeOwners outer_edge_owners(const std::vector<Part>& parts) {
+  EdgeOwners owner;
+  for (std::size_t i = 0; i < parts.size(); ++i)
+    for (std::size_t t = 0; t < parts[i].mesh.triangles.size(); ++t)
+      if (parts[i].triangle_neighbor[t] < 0)
+        for (int k = 0; k < 3; ++k)
+          owner[edge_key(parts[i].mesh.vertices[parts[i].mesh.triangles[t][k]],
+                         parts[i].mesh.vertices[parts[i].mesh.triangles[t][(k + 1) % 3]])] =
+              static_cast<std::int32_t>(i);
+  return owner;
+}
+
 // Seam vertices (outer vertices that interfaces reach too) and how far each moves into the
 // solid: a thousandth of its outer edges' mean length, so that the input surface, which passes
 // through the vertex, crosses the walls there cleanly instead of grazing a corner. Left out
 // where a part's triangles around the vertex change between outer and interface more than
-// twice: one wall edge could not join them.
-LengthMap seam_insets(const std::vector<Part>& parts,
-                      const std::vector<std::array<Vec3, 3>>& outer) {
+// twice: one wall edge could not join them. Left out too at the ends of an outer edge that no
+// outer edge runs back along (a part touching itself along it, one sheet split at the edge's
+// midpoint): no part would take a wall there.
+LengthMap seam_insets(const std::vector<Part>& parts, const std::vector<std::array<Vec3, 3>>& outer,
+                      const EdgeOwners& owner) {
   std::map<Vec3, std::pair<double, int>, VecLess> edges;  // outer edge lengths at each vertex
   for (const auto& t : outer)
     for (int k = 0; k < 3; ++k) {
@@ -188,26 +208,14 @@ LengthMap seam_insets(const std::vector<Part>& parts,
     for (std::size_t v = 0; v < m.vertices.size(); ++v)
       if (seam_edges[v] > 2) excluded.insert(m.vertices[v]);
   }
+  for (const auto& [key, part] : owner)
+    if (const Vec3 a(key[0], key[1], key[2]), b(key[3], key[4], key[5]);
+        !owner.contains(edge_key(b, a))) {
+      excluded.insert(a);
+      excluded.insert(b);
+    }
   for (const Vec3& p : excluded) inset.erase(p);
   return inset;
-}
-
-// Directed outer edges (by their ends' positions) and the part whose outer triangle has them.
-using EdgeKey = std::array<double, 6>;
-EdgeKey edge_key(const Vec3& a, const Vec3& b) {
-  return {a.x(), a.y(), a.z(), b.x(), b.y(), b.z()};
-}
-using EdgeOwners = std::map<EdgeKey, std::int32_t>;
-EdgeOwners outer_edge_owners(const std::vector<Part>& parts) {
-  EdgeOwners owner;
-  for (std::size_t i = 0; i < parts.size(); ++i)
-    for (std::size_t t = 0; t < parts[i].mesh.triangles.size(); ++t)
-      if (parts[i].triangle_neighbor[t] < 0)
-        for (int k = 0; k < 3; ++k)
-          owner[edge_key(parts[i].mesh.vertices[parts[i].mesh.triangles[t][k]],
-                         parts[i].mesh.vertices[parts[i].mesh.triangles[t][(k + 1) % 3]])] =
-              static_cast<std::int32_t>(i);
-  return owner;
 }
 
 // A part's region, moved out, with the part on the other side of each face (-1: outer) and
@@ -593,15 +601,8 @@ SolidCut cut_parts_from_solid(const TriMesh& solid, std::vector<Part>& parts) {
   // seam vertex of the crossing triangles splits, once; one split already joins again; any other
   // moves half as far. Splitting only there keeps the cut away from seams elsewhere: it would
   // pass within a float step of them.
-  LengthMap seams = seam_insets(parts, outer);
   const EdgeOwners owner = outer_edge_owners(parts);
-  // A seam edge whose other side on the surface is no outer edge (a part touching itself along
-  // it, one sheet split at the edge's midpoint) has no part to give a wall: its ends never split.
-  for (const auto& [key, part] : owner)
-    if (!owner.contains({key[3], key[4], key[5], key[0], key[1], key[2]})) {
-      seams.erase(Vec3(key[0], key[1], key[2]));
-      seams.erase(Vec3(key[3], key[4], key[5]));
-    }
+  const LengthMap seams = seam_insets(parts, outer, owner);
   LengthMap inset;                // the seam vertices split now
   std::set<Vec3, VecLess> tried;  // and those split before
   std::vector<Region> regions(n);
