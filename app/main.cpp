@@ -74,6 +74,7 @@ const std::map<std::string, double> kUnitsToMm = {
 struct CliOptions {
   std::string input, outdir;
   double scale = 1.0;
+  double size_mm = 0.0;
   std::string units = "mm";
   int threads = 0;
   bool quiet = false, force = false;
@@ -104,6 +105,7 @@ int run_decompose(const CliOptions& cli) {
 
   LoadOptions load;
   load.scale = cli.scale;
+  load.size_mm = cli.size_mm;
   load.units_to_mm = kUnitsToMm.at(cli.units);
   const LoadedSolid solid = load_solid(cli.input, load);
   const double load_s = std::chrono::duration<double>(Clock::now() - t_start).count();
@@ -253,11 +255,17 @@ int main(int argc, char** argv) {
         ->capture_default_str();
   };
   add_mold_options(dec, o.molds);
-  dec->add_option("--scale", cli.scale, "Multiply the input's coordinates by this")
-      ->capture_default_str();
-  dec->add_option("--units", cli.units, "Units of the input file")
-      ->check(CLI::IsMember(kUnitsToMm))
-      ->capture_default_str();
+  CLI::Option* dec_scale =
+      dec->add_option("--scale", cli.scale, "Multiply the input's coordinates by this")
+          ->capture_default_str();
+  CLI::Option* dec_units = dec->add_option("--units", cli.units, "Units of the input file")
+                               ->check(CLI::IsMember(kUnitsToMm))
+                               ->capture_default_str();
+  dec->add_option("--size", cli.size_mm,
+                  "Scale the input so that its longest bounding-box side is this many mm")
+      ->check(CLI::Range(0.1, 100000.0))
+      ->excludes(dec_scale)
+      ->excludes(dec_units);
   dec->add_option("--threads", cli.threads, "Worker threads (0: all cores)")
       ->check(CLI::NonNegativeNumber);
   dec->add_flag("-q,--quiet", cli.quiet, "Print only errors and warnings");
@@ -285,11 +293,19 @@ int main(int argc, char** argv) {
                   "The decomposed mesh: enables the gap, outside and fidelity figures");
   double check_scale = 1.0;
   std::string check_units = "mm";
-  chk->add_option("--scale", check_scale, "As given to decompose: multiplies --input's coordinates")
-      ->capture_default_str();
-  chk->add_option("--units", check_units, "As given to decompose: units of the --input file")
-      ->check(CLI::IsMember(kUnitsToMm))
-      ->capture_default_str();
+  CLI::Option* chk_scale =
+      chk->add_option("--scale", check_scale,
+                      "As given to decompose: multiplies --input's coordinates")
+          ->capture_default_str();
+  CLI::Option* chk_units =
+      chk->add_option("--units", check_units, "As given to decompose: units of the --input file")
+          ->check(CLI::IsMember(kUnitsToMm))
+          ->capture_default_str();
+  chk->add_option("--size", check_opts.input_size_mm,
+                  "As given to decompose: longest bounding-box side of --input, mm")
+      ->check(CLI::Range(0.1, 100000.0))
+      ->excludes(chk_scale)
+      ->excludes(chk_units);
   chk->add_flag("--json", check_json, "Print all figures as JSON");
   chk->add_option("--epsilon", check_opts.epsilon_mm, "Undercut / contact tolerance in mm")
       ->capture_default_str();

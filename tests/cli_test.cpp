@@ -117,6 +117,26 @@ TEST(Cli, BadOptionIsAUsageError) {
   EXPECT_FALSE(fs::exists(dir + "/out"));
 }
 
+// --size scales the longest side to the given mm, whatever unit the file was in; it cannot be
+// combined with --scale or --units, and `check --size` reads the input the same way.
+TEST(Cli, SizeSetsTheLongestSide) {
+  const std::string dir = test::temp_dir("size");
+  write_text(dir + "/cube.obj", cube_obj());
+  for (const char* other : {" --scale 2", " --units cm", " --size 0", " --size -1"}) {
+    const RunResult r = run("decompose " + dir + "/cube.obj -o " + dir + "/bad --size 30" + other);
+    EXPECT_EQ(r.exit_code, 2) << other << ": " << r.err;
+    EXPECT_LT(r.err.size(), 200u) << r.err;
+    EXPECT_FALSE(fs::exists(dir + "/bad"));
+  }
+  const RunResult r = run("decompose " + dir + "/cube.obj -o " + dir +
+                          "/out --size 30 --tets 2000 --directions 64 --restarts 2 --no-molds -q");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const TriMesh part = load_solid(dir + "/out/parts/part_000.stl").mesh;
+  EXPECT_NEAR(signed_volume(part), 27000.0, 270.0);
+  EXPECT_EQ(run("check " + dir + "/out --input " + dir + "/cube.obj --size 30").exit_code, 0);
+  EXPECT_EQ(run("check " + dir + "/out --input " + dir + "/cube.obj").exit_code, 3);
+}
+
 TEST(Cli, ExistingOutputIsNotOverwrittenWithoutForce) {
   const std::string dir = test::temp_dir("exists");
   write_text(dir + "/cube.obj", cube_obj());

@@ -444,6 +444,18 @@ TEST(LoadSolid, ScaleAndUnitsMultiplyCoordinates) {
   EXPECT_NEAR(signed_volume(solid.mesh), kBoxVolume * std::pow(0.5 * 25.4, 3), 1e-6);
 }
 
+TEST(LoadSolid, SizeSetsTheLongestSideWhateverTheScale) {
+  const std::string path = write_file("sized.stl", "");
+  write_stl(path, box());
+  const LoadedSolid solid = load_solid(path, {.scale = 7.0, .units_to_mm = 25.4, .size_mm = 150.0});
+  const Box3 b = bounding_box(solid.mesh.vertices);
+  EXPECT_NEAR((b.max - b.min).maxCoeff(), 150.0, 1e-9);
+  const double volume = kBoxVolume * std::pow(150.0 / kBoxSize.maxCoeff(), 3);
+  EXPECT_NEAR(signed_volume(solid.mesh), volume, 1e-9 * volume);
+  for (double size : {-1.0, std::numeric_limits<double>::infinity()})
+    load_error(path, ErrorCode::InvalidOptions, {.size_mm = size});
+}
+
 TEST(LoadSolid, AbsurdScaleAndBadOptionsAreRejected) {
   const std::string path = write_file("scale.stl", "");
   write_stl(path, box());

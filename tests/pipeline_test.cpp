@@ -235,7 +235,7 @@ DhfFigures dhf_figures(const CheckReport& report) {
   return f;
 }
 
-TEST(Pipeline, ElephantAtPaperSize) {
+TEST(PipelineExtended, ElephantAtPaperSize) {
   const std::string path = test::cgal_mesh("elephant.off");
   if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
   const TriMesh input = test::load_scaled(path, 275.0);
@@ -313,7 +313,7 @@ TEST(Pipeline, ElephantAtPaperSize) {
 // and come back through another part are rarer in the worst part, and much shallower, with them
 // than without, on the segmentation's own labeling (with the default choice among candidate
 // labelings, the repair would also choose which labeling is kept).
-TEST(Pipeline, InfeasibleVolumeRepairMakesPartsCloserToDoubleHeightFields) {
+TEST(PipelineExtended, InfeasibleVolumeRepairMakesPartsCloserToDoubleHeightFields) {
   const std::string path = test::cgal_mesh("fandisk.off");
   if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
   const TriMesh input = test::load_scaled(path, 275.0);
@@ -390,7 +390,7 @@ ModelRun decompose_model(const std::string& path, std::int32_t tets = 0) {
 
 // Rockerarm at the default settings: its parts have an order (found with the planner's margin
 // below check's own limit, shrunk if need be), and check confirms it.
-TEST(Pipeline, RockerarmPartsAssembleAndCheckConfirms) {
+TEST(PipelineExtended, RockerarmPartsAssembleAndCheckConfirms) {
   const std::string path = test::extra_model("rockerarm.stl");
   if (path.empty()) GTEST_SKIP() << "extended models absent (set DHFCAST_MODELS_DIR)";
   const auto [input, opts, d] = decompose_model(path);
@@ -401,7 +401,7 @@ TEST(Pipeline, RockerarmPartsAssembleAndCheckConfirms) {
 
 // Fertility at the paper's tet count: its parts as first made lock together (a bump of one
 // part's interface in the other's way); clearing that way gives an order, which check confirms.
-TEST(Pipeline, FertilitysBlockedWayIsClearedAndCheckConfirmsTheOrder) {
+TEST(PipelineExtended, FertilitysBlockedWayIsClearedAndCheckConfirmsTheOrder) {
   const std::string path = test::extra_model("fertility.stl");
   if (path.empty()) GTEST_SKIP() << "extended models absent (set DHFCAST_MODELS_DIR)";
   const auto [input, opts, d] = decompose_model(path, 24215);
@@ -420,7 +420,7 @@ TEST(Pipeline, FertilitysBlockedWayIsClearedAndCheckConfirmsTheOrder) {
 // together whatever way is cleared; another competing candidate's parts come apart, and that
 // one is kept. Its smoothed interface wraps around a thin wedge of the other part, which the
 // gap filling gives to it: then no line the checker draws crosses a gap deeper than epsilon.
-TEST(Pipeline, DoubletorusKeepsACandidateWhosePartsComeApart) {
+TEST(PipelineExtended, DoubletorusKeepsACandidateWhosePartsComeApart) {
   const std::string path = test::extra_model("doubletorus.stl");
   if (path.empty()) GTEST_SKIP() << "extended models absent (set DHFCAST_MODELS_DIR)";
   const auto [input, opts, d] = decompose_model(path, 19527);
@@ -435,7 +435,7 @@ TEST(Pipeline, DoubletorusKeepsACandidateWhosePartsComeApart) {
 
 // Elephant at the paper's tet count: no candidate's parts come apart, whichever of their +-d ways
 // is cleared; the one kept clears a way over the sphere, after which check confirms the order.
-TEST(Pipeline, ElephantClearsAWayOverTheSphereToComeApart) {
+TEST(PipelineExtended, ElephantClearsAWayOverTheSphereToComeApart) {
   const std::string path = test::extra_model("elephant.stl");
   if (path.empty()) GTEST_SKIP() << "extended models absent (set DHFCAST_MODELS_DIR)";
   const auto [input, opts, d] = decompose_model(path, 50589);
@@ -464,7 +464,7 @@ TEST(Pipeline, ElephantClearsAWayOverTheSphereToComeApart) {
 // leave lines that meet a part twice, across air: tets its direction does not allow, that no
 // neighbour could take. Other candidates are made too, and one whose parts are double height
 // fields is kept: check finds no violating line, and the parts have an order.
-TEST(Pipeline, BimbaKeepsACandidateWhosePartsAreDoubleHeightFields) {
+TEST(PipelineExtended, BimbaKeepsACandidateWhosePartsAreDoubleHeightFields) {
   const std::string path = test::extra_model("bimba.stl");
   if (path.empty()) GTEST_SKIP() << "extended models absent (set DHFCAST_MODELS_DIR)";
   const auto [input, opts, d] = decompose_model(path, 59077);
@@ -492,26 +492,52 @@ TEST(Pipeline, ConvexSolidIsOnePart) {
   EXPECT_TRUE(d.assembly.found);
 }
 
-// The elephant at this size has a dent filled after the cut (the booleans run there alone, not
-// one per part in parallel), so every step of the parts stage is covered.
-TEST(Pipeline, SameSeedSameOutputOnAnyThreadCount) {
-  const std::string path = test::cgal_mesh("elephant.off");
-  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
-  const TriMesh input = test::load_scaled(path, 275.0);
-  const DecomposeOptions opts = fast_options();
-  const InputInfo info{"elephant.off", 0, 0.0, {}, false};
+// Decomposes `input` on all threads and on one, and expects the same JSON, part meshes and
+// mold halves; returns the first decomposition.
+Decomposition expect_same_output_on_any_thread_count(const TriMesh& input,
+                                                     const DecomposeOptions& opts,
+                                                     const std::string& name) {
+  const InputInfo info{name, 0, 0.0, {}, false};
   const Decomposition many = decompose(input, opts);
-  EXPECT_GT(many.solid_cut.filled_dents, 0);
   tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
   const Decomposition single = decompose(input, opts);
   EXPECT_EQ(decomposition_json(info, opts, many, 0, 0, false),
             decomposition_json(info, opts, single, 0, 0, false));
-  ASSERT_EQ(many.parts.size(), single.parts.size());
-  for (std::size_t i = 0; i < many.parts.size(); ++i) {
+  EXPECT_EQ(many.parts.size(), single.parts.size());
+  for (std::size_t i = 0; i < std::min(many.parts.size(), single.parts.size()); ++i) {
     EXPECT_EQ(many.parts[i].mesh.vertices, single.parts[i].mesh.vertices) << "part " << i;
     EXPECT_EQ(many.parts[i].mesh.triangles, single.parts[i].mesh.triangles) << "part " << i;
     EXPECT_EQ(many.parts[i].triangle_neighbor, single.parts[i].triangle_neighbor) << "part " << i;
   }
+  EXPECT_EQ(many.molds.size(), single.molds.size());
+  for (std::size_t i = 0; i < std::min(many.molds.size(), single.molds.size()); ++i)
+    for (const auto half : {&Mold::up, &Mold::down}) {
+      EXPECT_EQ((many.molds[i].*half).vertices, (single.molds[i].*half).vertices) << "mold " << i;
+      EXPECT_EQ((many.molds[i].*half).triangles, (single.molds[i].*half).triangles) << "mold " << i;
+    }
+  return many;
+}
+
+// A small real model, every stage including the molds: the guarantee needs no large model.
+TEST(Pipeline, SameSeedSameOutputOnAnyThreadCount) {
+  const std::string path = test::cgal_mesh("knot1.off");
+  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
+  DecomposeOptions opts = fast_options(4000);
+  opts.make_molds = true;
+  const Decomposition d =
+      expect_same_output_on_any_thread_count(test::load_scaled(path, 80.0), opts, "knot1.off");
+  EXPECT_EQ(d.molds.size(), d.parts.size());
+}
+
+// The elephant at this size has a dent filled after the cut (the booleans run there alone, not
+// one per part in parallel), so every step of the parts stage is covered.
+TEST(PipelineExtended, SameSeedSameOutputOnAnyThreadCountWithAFilledDent) {
+  const std::string path = test::cgal_mesh("elephant.off");
+  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
+  const TriMesh input = test::load_scaled(path, 275.0);
+  const Decomposition d =
+      expect_same_output_on_any_thread_count(input, fast_options(), "elephant.off");
+  EXPECT_GT(d.solid_cut.filled_dents, 0);
 }
 
 // Every part gets a mold that the independent checker accepts: halves closed and manifold, they

@@ -16,6 +16,7 @@ struct CheckOptions {
   std::string input_mesh;   // the decomposed mesh, in mm; "" skips the checks that need it
                             // (gap, outside and fidelity) and takes the input volume from the json
   double input_scale = 1.0;  // multiplies input_mesh's coordinates (decompose's --scale x units)
+  double input_size_mm = 0.0;  // when > 0, decompose's --size: replaces input_scale
   double epsilon_mm = 0.4;  // undercut / contact tolerance, as in decompose (README: --epsilon)
 
   // solids: |json volume_mm3 - mesh volume| / mesh volume, per part, allowed on top of what

@@ -13,6 +13,9 @@ namespace dhfcast {
 struct LoadOptions {
   double scale = 1.0;        // multiply coordinates by this after reading (after the units factor)
   double units_to_mm = 1.0;  // size of one file unit in mm (e.g. 25.4 for inches)
+  // When > 0: scale uniformly so that the longest side of the bounding box is this many mm
+  // (scale and units_to_mm are then ignored: files come in any unit).
+  double size_mm = 0.0;
 };
 
 // What validate_mesh() found. Counts are zero for a valid solid; first_problem names a location

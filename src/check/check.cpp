@@ -50,6 +50,7 @@ void validate_options(const CheckOptions& o) {
   };
   require(o.epsilon_mm > 0 && std::isfinite(o.epsilon_mm), "epsilon_mm must be > 0");
   require(o.input_scale > 0 && std::isfinite(o.input_scale), "input_scale must be > 0");
+  require(o.input_size_mm >= 0 && std::isfinite(o.input_size_mm), "input_size_mm must be >= 0");
   require(o.json_volume_tolerance >= 0, "json_volume_tolerance must be >= 0");
   require(o.max_volume_error >= 0, "max_volume_error must be >= 0");
   require(o.coverage_samples > 0, "coverage_samples must be > 0");
@@ -536,6 +537,7 @@ CheckReport check_output(const CheckOptions& options) {
   if (!options.input_mesh.empty()) {
     LoadOptions load;
     load.scale = options.input_scale;
+    load.size_mm = options.input_size_mm;
     const TriMesh input = load_solid(options.input_mesh, load).mesh;
     // A mesh decomposed with --scale or --units and checked without them would give figures
     // that mean nothing.

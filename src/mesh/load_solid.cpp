@@ -28,9 +28,16 @@ void check_factor(const char* name, double value) {
 LoadedSolid load_solid(const std::string& path, const LoadOptions& opts) {
   check_factor("scale", opts.scale);
   check_factor("units_to_mm", opts.units_to_mm);
+  if (opts.size_mm != 0.0) check_factor("size", opts.size_mm);
   LoadedSolid solid;
   solid.mesh = read_mesh(path);
-  const double factor = opts.units_to_mm * opts.scale;
+  double factor = opts.units_to_mm * opts.scale;
+  if (opts.size_mm > 0.0) {
+    // A box with NaN corners leaves the factor alone: validation names the bad vertex below.
+    const Box3 box = bounding_box(solid.mesh.vertices);
+    const double longest = (box.max - box.min).maxCoeff();
+    if (std::isfinite(longest) && longest > 0.0) factor = opts.size_mm / longest;
+  }
   if (factor != 1.0)
     for (Vec3& p : solid.mesh.vertices) p *= factor;
 
