@@ -18,6 +18,7 @@
 
 #include "dhfcast/error.h"
 #include "dhfcast/mesh.h"
+#include "dhfcast/tolerance.h"
 #include "molds_internal.h"
 
 namespace dhfcast {
@@ -299,18 +300,6 @@ struct FitPoint : HeightGrid::Spot {
   double up_min = -INFINITY, down_max = INFINITY;
 };
 
-// Does the stretch (t0, t1) of the line origin + t * d reach deeper than epsilon from the part's
-// surface? Sampled every epsilon / 2, its middle first (the usual answer for a thick stretch).
-bool deeper_than(const LineIndex& index, const Vec3& origin, const Vec3& d, double t0, double t1,
-                 double epsilon_mm) {
-  if (t1 - t0 <= 2 * epsilon_mm) return false;  // every point is within half of it from an end
-  if (index.distance(origin + 0.5 * (t0 + t1) * d) > epsilon_mm) return true;
-  const int n = std::min(256, static_cast<int>(std::ceil((t1 - t0) / (0.5 * epsilon_mm))) + 1);
-  for (int q = 1; q + 1 < n; ++q)
-    if (index.distance(origin + (t0 + (t1 - t0) * q / (n - 1)) * d) > epsilon_mm) return true;
-  return false;
-}
-
 // What release asks of the two surfaces on a line meeting the part in `in` (parameters =
 // heights along d), where the parting surface is at `parting`: the up half is pulled along +d
 // past everything above it, so its surface must be at least the bottom of the topmost
@@ -334,8 +323,10 @@ std::optional<std::pair<double, double>> release_bounds(const std::vector<LineIn
   if (parting >= up_min) up_min = -INFINITY;
   if (parting <= down_max) down_max = INFINITY;
   if (up_min == -INFINITY && down_max == INFINITY) return std::nullopt;
+  const double depth_mm = 0.5 * epsilon_mm;
+  auto farther = [&](const Vec3& p) { return index.distance(p) > depth_mm; };
   auto holds = [&](const LineInterval& iv) {
-    return deeper_than(index, origin, d, iv.begin, iv.end, 0.5 * epsilon_mm);
+    return deeper_than(origin, d, iv.begin, iv.end, depth_mm, farther);
   };
   if (up_min > -INFINITY && !holds(in.back())) up_min = -INFINITY;
   if (down_max < INFINITY && !holds(in.front())) down_max = INFINITY;

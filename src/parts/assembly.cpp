@@ -14,6 +14,7 @@
 #include "carve.h"
 #include "dhfcast/error.h"
 #include "dhfcast/parts.h"
+#include "dhfcast/tolerance.h"
 #include "ray_scene.h"
 
 namespace dhfcast {
@@ -82,17 +83,11 @@ class PartScene {
   detail::RayScene scene_;
 };
 
-// The deepest point of the stretch (t0, t1) of origin + t * dir is farther than tolerance_mm
-// from part p's boundary: the middle first (usually the deepest), then every half tolerance, as
-// `dhfcast check` steps.
+// Does the stretch (t0, t1) of origin + t * dir reach deeper than tolerance_mm into part p?
 bool deeper_than(const PartScene& scene, std::int32_t p, const Vec3& origin, const Vec3& dir,
                  double t0, double t1, double tolerance_mm) {
-  if (tolerance_mm == 0.0) return true;
-  auto far = [&](double t) { return !scene.near(p, origin + t * dir, tolerance_mm); };
-  if (far(0.5 * (t0 + t1))) return true;
-  for (double t = t0 + tolerance_mm; t < t1 - tolerance_mm; t += 0.5 * tolerance_mm)
-    if (far(t)) return true;
-  return false;
+  return dhfcast::deeper_than(origin, dir, t0, t1, tolerance_mm,
+                              [&](const Vec3& x) { return !scene.near(p, x, tolerance_mm); });
 }
 
 // Points just inside a mesh's boundary, where a moving part first touches another: near each
@@ -154,10 +149,8 @@ void mark_obstacles(const std::vector<Crossing>& crossings, std::int32_t self, d
       // Repeated entries (a hit on an edge shared by two triangles) count once.
       if (!grazing && entry < 0) entry = static_cast<std::int32_t>(k);
     } else if (entry >= 0) {
-      // Every point of a stretch is within half its length of its ends, on the surface.
       const double t_in = crossings[entry].t_mm;
-      if (c.t_mm - t_in > 2 * tolerance_mm && deep(c.part, t_in, c.t_mm))
-        found.push_back({c.part, t_in, c.t_mm});
+      if (deep(c.part, t_in, c.t_mm)) found.push_back({c.part, t_in, c.t_mm});
       entry = -1;
     }
   }
@@ -444,8 +437,7 @@ void line_gaps(const PartScene& scene, std::int32_t p, const Vec3& origin, const
     }
     if (!c.exits && !inside) {
       inside = true;
-      if (left > -INFINITY && c.t_mm - left > 2 * epsilon_mm &&
-          deeper_than(scene, p, origin, dir, left, c.t_mm, epsilon_mm)) {
+      if (left > -INFINITY && deeper_than(scene, p, origin, dir, left, c.t_mm, epsilon_mm)) {
         std::int32_t met = -1;  // the first other part entered in the gap
         for (const Crossing& o : crossings)
           if (o.part != p && !o.exits && o.t_mm >= left && o.t_mm < c.t_mm) {
@@ -577,9 +569,7 @@ CarveLines carve_lines(const std::vector<Part>& parts, std::int32_t p, std::int6
           std::vector<std::size_t> first{0}, every{0};
           for (std::size_t i = 1; i < stretches.size(); ++i) {
             const double t0 = stretches[i - 1].end, t1 = stretches[i].begin;
-            if (t1 - t0 > 2 * epsilon_mm &&
-                deeper_than(scene, p, origin, grid.d, t0, t1, epsilon_mm))
-              first.push_back(i);
+            if (deeper_than(scene, p, origin, grid.d, t0, t1, epsilon_mm)) first.push_back(i);
             every.push_back(i);
           }
           CarveLine line;
