@@ -5,9 +5,16 @@
 #include <algorithm>
 #include <cmath>
 
+#include "dhfcast/error.h"
 #include "dhfcast/types.h"
 
 namespace dhfcast {
+
+// The undercut tolerance must be a positive number of mm: the accessibility, the gap lines and
+// the carving all need one. Throws Error{InvalidOptions} naming --epsilon otherwise.
+inline void validate_epsilon(double epsilon_mm) {
+  require_option(std::isfinite(epsilon_mm) && epsilon_mm > 0, "--epsilon must be > 0");
+}
 
 // Does the stretch (t0, t1) of the line origin + t * dir, whose ends lie on a surface, reach
 // deeper than tolerance_mm from that surface? farther(p) says whether the point p is farther than

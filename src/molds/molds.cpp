@@ -35,10 +35,6 @@ constexpr int kMinGridCells = 160, kMaxGridCells = 320;
 constexpr int kChannelSegments = 16;
 constexpr int kKeySegments = 32;
 
-void require(bool ok, const std::string& what) {
-  if (!ok) throw Error(ErrorCode::InvalidOptions, "invalid option: " + what);
-}
-
 // Local frame of a mold: x = up x d, y = up (gravity), w = d.
 struct Frame {
   Vec3 x, y, w;
@@ -403,20 +399,20 @@ double extent_along(const TriMesh& m, const Vec3& up) {
 
 }  // namespace
 
-void validate_mold_options(const MoldOptions& o) {
-  require(std::isfinite(o.wall_mm) && o.wall_mm >= 1 && o.wall_mm <= 200,
-          "--wall must be between 1 and 200 mm");
-  require(std::isfinite(o.sprue_diameter_mm) && o.sprue_diameter_mm > 0 &&
-              o.sprue_diameter_mm < 2 * o.wall_mm,
-          "--sprue-diameter must be > 0 and less than twice --wall");
-  require(std::isfinite(o.vent_diameter_mm) && o.vent_diameter_mm > 0 &&
-              o.vent_diameter_mm <= o.sprue_diameter_mm,
-          "--vent-diameter must be > 0 and at most --sprue-diameter");
-  require(std::isfinite(o.key_clearance_mm) && o.key_clearance_mm >= 0 &&
-              o.key_clearance_mm <= 0.2 * o.wall_mm,
-          "--key-clearance must be between 0 and a fifth of --wall");
-  require(std::isfinite(o.epsilon_mm) && o.epsilon_mm >= 0, "mold epsilon must be >= 0");
-  require(o.gravity_up.allFinite(), "the pouring direction must be finite");
+void MoldOptions::validate() const {
+  require_option(std::isfinite(wall_mm) && wall_mm >= 1 && wall_mm <= 200,
+                 "--wall must be between 1 and 200 mm");
+  require_option(
+      std::isfinite(sprue_diameter_mm) && sprue_diameter_mm > 0 && sprue_diameter_mm < 2 * wall_mm,
+      "--sprue-diameter must be > 0 and less than twice --wall");
+  require_option(std::isfinite(vent_diameter_mm) && vent_diameter_mm > 0 &&
+                     vent_diameter_mm <= sprue_diameter_mm,
+                 "--vent-diameter must be > 0 and at most --sprue-diameter");
+  require_option(
+      std::isfinite(key_clearance_mm) && key_clearance_mm >= 0 && key_clearance_mm <= 0.2 * wall_mm,
+      "--key-clearance must be between 0 and a fifth of --wall");
+  validate_epsilon(epsilon_mm);
+  require_option(gravity_up.allFinite(), "the pouring direction must be finite");
 }
 
 namespace {
@@ -498,8 +494,7 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
   const double span_x = local.max.x() - local.min.x() + 2 * margin;
   const double span_y = local.max.y() - local.min.y() + 2 * margin;
   const double span = std::max(span_x, span_y);
-  const double wanted_cells =
-      opts.epsilon_mm > 0.0 ? std::ceil(span / (1.5 * opts.epsilon_mm)) : kMaxGridCells;
+  const double wanted_cells = std::ceil(span / (1.5 * opts.epsilon_mm));
   g.s = span / std::clamp(wanted_cells, double{kMinGridCells}, double{kMaxGridCells});
   // A fraction of a cell off the part's bounding box, so grid lines do not run along its walls.
   const double shift_x = std::fmod(0.37 + 0.31 * attempt, 1.0),
@@ -713,7 +708,7 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
 }  // namespace
 
 Mold build_mold(const Part& part, const MoldOptions& opts) {
-  validate_mold_options(opts);
+  opts.validate();
   constexpr int kAttempts = 4;
   for (int attempt = 0;; ++attempt) {
     try {
@@ -725,7 +720,7 @@ Mold build_mold(const Part& part, const MoldOptions& opts) {
 }
 
 std::vector<Mold> build_molds(const std::vector<Part>& parts, const MoldOptions& opts) {
-  validate_mold_options(opts);
+  opts.validate();
   std::vector<Mold> molds(parts.size());
   tbb::parallel_for(std::size_t{0}, parts.size(), [&](std::size_t i) {
     try {

@@ -483,16 +483,11 @@ std::vector<DhfGap> part_gaps(const PartScene& scene, const Part& part, std::int
   return gaps;
 }
 
-void check_gap_options(std::int64_t lines, double epsilon_mm) {
-  if (lines < 1 || lines > 100'000'000 || !(epsilon_mm >= 0.0))
-    throw Error(ErrorCode::InvalidOptions, "dhf_gaps: lines must be in 1..1e8, epsilon >= 0");
-}
-
 }  // namespace
 
 std::vector<std::vector<DhfGap>> dhf_gaps(const std::vector<Part>& parts, std::int64_t lines,
                                           double epsilon_mm) {
-  check_gap_options(lines, epsilon_mm);
+  detail::validate_gap_options(lines, epsilon_mm);
   const PartScene scene(meshes_of(parts));
   std::vector<std::vector<DhfGap>> gaps(parts.size());
   for (std::int32_t p = 0; p < static_cast<std::int32_t>(parts.size()); ++p)
@@ -501,13 +496,18 @@ std::vector<std::vector<DhfGap>> dhf_gaps(const std::vector<Part>& parts, std::i
 }
 
 std::int32_t dhf_gap_count(const Part& part, std::int64_t lines, double epsilon_mm) {
-  check_gap_options(lines, epsilon_mm);
+  detail::validate_gap_options(lines, epsilon_mm);
   // Whether a stretch is a gap, and how deep, depends on the part's own boundary only.
   const PartScene scene({&part.mesh});
   return static_cast<std::int32_t>(part_gaps(scene, part, 0, lines, epsilon_mm).size());
 }
 
 namespace detail {
+
+void validate_gap_options(std::int64_t lines, double epsilon_mm) {
+  require_option(lines >= 1 && lines <= 100'000'000, "gap lines must be in 1..1e8");
+  validate_epsilon(epsilon_mm);
+}
 
 namespace {
 
