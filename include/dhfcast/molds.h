@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "dhfcast/access.h"
 #include "dhfcast/parts.h"
 #include "dhfcast/types.h"
 
@@ -21,8 +22,9 @@ struct MoldOptions {
   // orthogonal to d (fewest air traps, then the shortest fall). Otherwise its component
   // orthogonal to d is used (it must have one).
   Vec3 gravity_up = Vec3::Zero();
-  double epsilon_mm = 0.4;         // undercut tolerance of the face split; decompose() passes
-                                   // its own (AccessibilityOptions::epsilon_mm)
+  // Undercut tolerance of the face split and the release; decompose() passes its own
+  // (AccessibilityOptions::epsilon_mm).
+  double epsilon_mm = AccessibilityOptions{}.epsilon_mm;
 
   // Throws Error{InvalidOptions} naming the first option out of range.
   void validate() const;
