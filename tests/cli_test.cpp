@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -135,6 +136,20 @@ TEST(Cli, SizeSetsTheLongestSide) {
   EXPECT_NEAR(signed_volume(part), 27000.0, 270.0);
   EXPECT_EQ(run("check " + dir + "/out --input " + dir + "/cube.obj --size 30").exit_code, 0);
   EXPECT_EQ(run("check " + dir + "/out --input " + dir + "/cube.obj").exit_code, 3);
+}
+
+// The method and the carving need a positive undercut tolerance: zero is refused as a negative
+// one is, before the input is even read (stderr holds the one error line and nothing else).
+TEST(Cli, NonPositiveEpsilonIsRefusedUpFront) {
+  for (const std::string eps : {"0", "-0.5"}) {
+    const std::string dir = test::temp_dir("eps");
+    write_text(dir + "/cube.obj", cube_obj());
+    const RunResult r = run("decompose " + dir + "/cube.obj -o " + dir + "/out --epsilon " + eps);
+    EXPECT_EQ(r.exit_code, 2) << eps << ": " << r.err;
+    EXPECT_NE(r.err.find("--epsilon"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(fs::exists(dir + "/out"));
+  }
 }
 
 TEST(Cli, ExistingOutputIsNotOverwrittenWithoutForce) {

@@ -13,6 +13,9 @@ namespace dhfcast {
 struct AccessibilityOptions {
   double epsilon_mm = 0.4;  // undercut tolerance: a stretch of the ray beyond its first exit that
                             // stays within this distance of the surface is ignored (paper Fig. 5)
+
+  // Throws Error{InvalidOptions} unless epsilon_mm > 0 (validate_epsilon()).
+  void validate() const;
 };
 
 // One bit per (tet, direction), stored as a row of 64-bit words per tet.
@@ -69,7 +72,7 @@ struct AccessibilityField {
 // lies just outside the surface (tet boundaries approximate it) counts as on the surface.
 // Also computes the erosion and the seam edges with their visibility.
 // Pre: `surface` is a valid solid, `tets` has adjacency. Throws Error{InvalidOptions} when
-// epsilon_mm < 0 or `directions` is empty.
+// opts.validate() does or `directions` is empty.
 AccessibilityField compute_accessibility(const TriMesh& surface, const TetMesh& tets,
                                          const std::vector<Vec3>& directions,
                                          const AccessibilityOptions& opts = {},

@@ -8,6 +8,8 @@
 #include <utility>
 #include <vector>
 
+#include "dhfcast/access.h"  // decompose's default tolerance only: no code is shared
+
 namespace dhfcast {
 
 // Options for check_output(). Fractions are plain ratios (0.005 = 0.5 %).
@@ -17,7 +19,8 @@ struct CheckOptions {
                             // (gap, outside and fidelity) and takes the input volume from the json
   double input_scale = 1.0;  // multiplies input_mesh's coordinates (decompose's --scale x units)
   double input_size_mm = 0.0;  // when > 0, decompose's --size: replaces input_scale
-  double epsilon_mm = 0.4;  // undercut / contact tolerance, as in decompose (README: --epsilon)
+  // Undercut / contact tolerance, decompose's default (README: --epsilon).
+  double epsilon_mm = AccessibilityOptions{}.epsilon_mm;
 
   // solids: |json volume_mm3 - mesh volume| / mesh volume, per part, allowed on top of what
   // rounding the vertices to float (STL) can change.

@@ -26,6 +26,12 @@ class Error : public std::runtime_error {
   ErrorCode code_;
 };
 
+// Checks one option: throws Error{InvalidOptions, "invalid option: " + what} unless ok; `what`
+// names the option and its bounds.
+inline void require_option(bool ok, const std::string& what) {
+  if (!ok) throw Error(ErrorCode::InvalidOptions, "invalid option: " + what);
+}
+
 namespace detail {
 [[noreturn]] void assert_fail(const char* cond, const std::string& msg, const char* file, int line);
 }  // namespace detail

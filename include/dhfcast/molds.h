@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "dhfcast/access.h"
 #include "dhfcast/parts.h"
 #include "dhfcast/types.h"
 
@@ -21,8 +22,12 @@ struct MoldOptions {
   // orthogonal to d (fewest air traps, then the shortest fall). Otherwise its component
   // orthogonal to d is used (it must have one).
   Vec3 gravity_up = Vec3::Zero();
-  double epsilon_mm = 0.4;         // undercut tolerance of the face split; decompose() passes
-                                   // its own (AccessibilityOptions::epsilon_mm)
+  // Undercut tolerance of the face split and the release; decompose() passes its own
+  // (AccessibilityOptions::epsilon_mm).
+  double epsilon_mm = AccessibilityOptions{}.epsilon_mm;
+
+  // Throws Error{InvalidOptions} naming the first option out of range.
+  void validate() const;
 };
 
 // A channel cut half into each half along the parting surface: from its mouth in the cavity
@@ -76,13 +81,10 @@ struct Mold {
 // oriented solid whose vertices are exactly representable in float (what an STL stores), so
 // what is validated is what is written. A part whose mold cannot be built gets Mold::error and
 // the others are still built. Same parts and options give identical molds on any thread count.
-// Throws Error{InvalidOptions} naming the first bad option.
+// Throws Error{InvalidOptions} when opts.validate() does.
 std::vector<Mold> build_molds(const std::vector<Part>& parts, const MoldOptions& opts = {});
 
 // The mold of one part; throws Error{BooleanFailed} (or Internal) when it cannot be built.
 Mold build_mold(const Part& part, const MoldOptions& opts = {});
-
-// Checks every option; throws Error{InvalidOptions} naming the first bad one.
-void validate_mold_options(const MoldOptions& opts);
 
 }  // namespace dhfcast

@@ -46,6 +46,9 @@ struct SandwichOptions {
   // neighbouring part even where that part's direction does not allow all of it: a part that
   // small is not worth a mold of its own.
   double tiny_piece_share = 0.01;
+
+  // Throws Error{InvalidOptions} naming the first option out of range.
+  void validate() const;
 };
 
 // Tets that absorb_sandwiched_tets() moved from one label to another, within one region.
@@ -119,7 +122,7 @@ using TetAllowsLabel =
 // Only tets of the same region are exchanged.
 // Deterministic: the result does not depend on the thread count.
 // Pre: tets has adjacency; label/region as for extract_parts(). Throws Error{InvalidOptions}
-// when max_rounds < 0 or tiny_piece_share is not in [0, 1], Error{Internal} on mismatched sizes.
+// when opts.validate() does, Error{Internal} on mismatched sizes.
 SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int32_t>& label,
                                       const std::vector<std::int32_t>& region,
                                       const std::vector<std::vector<Vec3>>& directions,
@@ -193,6 +196,9 @@ struct SmoothingOptions {
   // After each step, move interior interface vertices back out of the infeasible volumes of
   // their parts that they started outside of (paper §4.3.1); see smooth_interfaces().
   bool project = true;
+
+  // Throws Error{InvalidOptions} naming the first option out of range.
+  void validate() const;
 };
 
 // Whether `tet` may belong to part `part` (its direction is DHF-accessible there).
@@ -338,7 +344,8 @@ struct DhfGap {
 // Where each part is not a double height field along its direction: on about `lines` lines along
 // d, a square grid over the part's footprint's bounding rectangle, every stretch between two of
 // its intervals whose deepest point is farther than epsilon_mm from its boundary (`dhfcast
-// check`'s rule), bottom to top; per part. Deterministic.
+// check`'s rule), bottom to top; per part. Deterministic. Throws Error{InvalidOptions} unless
+// lines is in 1..1e8 and epsilon_mm > 0.
 std::vector<std::vector<DhfGap>> dhf_gaps(const std::vector<Part>& parts, std::int64_t lines,
                                           double epsilon_mm);
 

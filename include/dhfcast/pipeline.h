@@ -124,7 +124,8 @@ using StageProgress = std::function<void(const std::string& stage, double fracti
 Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts = {},
                         const StageProgress& progress = {});
 
-// Checks every option; throws Error{InvalidOptions} naming the first bad one.
+// Checks every option, each options struct by its validate() (the stages call the same ones);
+// throws Error{InvalidOptions} naming the first bad one.
 void validate_options(const DecomposeOptions& opts);
 
 }  // namespace dhfcast

@@ -17,6 +17,9 @@ struct SegmentOptions {
   double lambda = 0.01;    // label cost: lambda * total volume per label used
   std::int32_t restarts = 15;  // randomized alpha-expansion runs; the best one is kept
   std::uint32_t seed = 1;      // seeds the restarts; same seed, same result on any thread count
+
+  // Throws Error{InvalidOptions} naming the first option out of range.
+  void validate() const;
 };
 
 // One candidate labeling of segment(), its parts already reduced.
@@ -60,9 +63,9 @@ struct Labeling {
 // the candidate directions only: a direction whose feasible set equals a lower-indexed one's,
 // or lies strictly inside another's, can be replaced by it without raising the energy, and is
 // dropped. Tets feasible for no direction take no part in eq. 1.
-// Pre: field was computed on `tets`, which has adjacency. Throws Error{InvalidOptions} for
-// negative weights, c_mm <= 0 or restarts < 1, Error{InvalidInput} when the field's or the
-// adjacency's size does not match the tets.
+// Pre: field was computed on `tets`, which has adjacency. Throws Error{InvalidOptions} when
+// opts.validate() does, Error{InvalidInput} when the field's or the adjacency's size does not
+// match the tets.
 Labeling segment(const TetMesh& tets, const AccessibilityField& field,
                  const SegmentOptions& opts = {}, const Progress& progress = {});
 

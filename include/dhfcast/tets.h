@@ -13,6 +13,9 @@ struct TetOptions {
                                      // or above when facet_distance_mm needs more boundary tets)
   double facet_distance_mm = 0.1;    // max distance of boundary facets from the input surface
   std::uint32_t seed = 1;            // the mesher's random seed (deterministic output)
+
+  // Throws Error{InvalidOptions} naming the first option out of range.
+  void validate() const;
 };
 
 // Meshes the volume bounded by `surface` with quality tets (CGAL Mesh_3, sliver exudation) whose
@@ -23,7 +26,7 @@ struct TetOptions {
 // all used, adjacency is filled. The output depends only on the input and opts (sequential
 // mesher, seeded random).
 // Pre: `surface` passes validate_mesh() and is outward oriented. Throws
-// Error{InvalidOptions} when target_tets < 1 or facet_distance_mm is not a positive number;
+// Error{InvalidOptions} when opts.validate() does;
 // Error{TetrahedralizationFailed} when the surface encloses no volume, the mesher fails or its tets
 // are not one connected volume with a closed boundary (e.g. the input is several separate solids).
 TetMesh tetrahedralize(const TriMesh& surface, const TetOptions& opts = {});

@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "dhfcast/error.h"
+#include "dhfcast/tolerance.h"
 #include "parallel_rays.h"
 #include "ray_scene.h"
 #include "tet_samples.h"
@@ -171,12 +172,13 @@ std::vector<SeamEdge> seam_edges(const TetMesh& tets, const RayScene& scene) {
 
 }  // namespace
 
+void AccessibilityOptions::validate() const { validate_epsilon(epsilon_mm); }
+
 AccessibilityField compute_accessibility(const TriMesh& surface, const TetMesh& tets,
                                          const std::vector<Vec3>& directions,
                                          const AccessibilityOptions& opts,
                                          const Progress& progress) {
-  if (!(opts.epsilon_mm >= 0.0))
-    throw Error(ErrorCode::InvalidOptions, "access: epsilon_mm must be >= 0");
+  opts.validate();
   if (directions.empty())
     throw Error(ErrorCode::InvalidOptions, "access: at least one direction is needed");
   const std::int32_t num_tets = static_cast<std::int32_t>(tets.tets.size());

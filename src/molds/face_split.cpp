@@ -9,6 +9,7 @@
 #include <numeric>
 
 #include "dhfcast/error.h"
+#include "dhfcast/tolerance.h"
 #include "molds_internal.h"
 
 namespace dhfcast::detail {
@@ -20,11 +21,13 @@ void on_maxflow_error(const char* message) {
 }
 
 // Does a ray from just outside triangle `f` along `dir` run deeper than epsilon into the part?
-// Stretches inside no longer than 2 * epsilon cannot be (the check's definition too).
 bool blocked_along(const LineIndex& index, const Vec3& centroid, const Vec3& dir,
                    double epsilon_mm, double hair_mm) {
+  auto farther = [&](const Vec3& p) { return index.distance(p) > epsilon_mm; };
   for (const LineInterval& in : robust_line_intervals(index, centroid, dir, hair_mm))
-    if (in.end > 0 && in.end - std::max(in.begin, 0.0) > 2 * epsilon_mm) return true;
+    if (in.end > 0 &&
+        deeper_than(centroid, dir, std::max(in.begin, 0.0), in.end, epsilon_mm, farther))
+      return true;
   return false;
 }
 

@@ -18,6 +18,7 @@
 
 #include "dhfcast/error.h"
 #include "dhfcast/mesh.h"
+#include "dhfcast/tolerance.h"
 #include "molds_internal.h"
 
 namespace dhfcast {
@@ -33,10 +34,6 @@ constexpr int kGravityCandidates = 24;  // directions orthogonal to d tried as "
 constexpr int kMinGridCells = 160, kMaxGridCells = 320;
 constexpr int kChannelSegments = 16;
 constexpr int kKeySegments = 32;
-
-void require(bool ok, const std::string& what) {
-  if (!ok) throw Error(ErrorCode::InvalidOptions, "invalid option: " + what);
-}
 
 // Local frame of a mold: x = up x d, y = up (gravity), w = d.
 struct Frame {
@@ -299,18 +296,6 @@ struct FitPoint : HeightGrid::Spot {
   double up_min = -INFINITY, down_max = INFINITY;
 };
 
-// Does the stretch (t0, t1) of the line origin + t * d reach deeper than epsilon from the part's
-// surface? Sampled every epsilon / 2, its middle first (the usual answer for a thick stretch).
-bool deeper_than(const LineIndex& index, const Vec3& origin, const Vec3& d, double t0, double t1,
-                 double epsilon_mm) {
-  if (t1 - t0 <= 2 * epsilon_mm) return false;  // every point is within half of it from an end
-  if (index.distance(origin + 0.5 * (t0 + t1) * d) > epsilon_mm) return true;
-  const int n = std::min(256, static_cast<int>(std::ceil((t1 - t0) / (0.5 * epsilon_mm))) + 1);
-  for (int q = 1; q + 1 < n; ++q)
-    if (index.distance(origin + (t0 + (t1 - t0) * q / (n - 1)) * d) > epsilon_mm) return true;
-  return false;
-}
-
 // What release asks of the two surfaces on a line meeting the part in `in` (parameters =
 // heights along d), where the parting surface is at `parting`: the up half is pulled along +d
 // past everything above it, so its surface must be at least the bottom of the topmost
@@ -334,8 +319,10 @@ std::optional<std::pair<double, double>> release_bounds(const std::vector<LineIn
   if (parting >= up_min) up_min = -INFINITY;
   if (parting <= down_max) down_max = INFINITY;
   if (up_min == -INFINITY && down_max == INFINITY) return std::nullopt;
+  const double depth_mm = 0.5 * epsilon_mm;
+  auto farther = [&](const Vec3& p) { return index.distance(p) > depth_mm; };
   auto holds = [&](const LineInterval& iv) {
-    return deeper_than(index, origin, d, iv.begin, iv.end, 0.5 * epsilon_mm);
+    return deeper_than(origin, d, iv.begin, iv.end, depth_mm, farther);
   };
   if (up_min > -INFINITY && !holds(in.back())) up_min = -INFINITY;
   if (down_max < INFINITY && !holds(in.front())) down_max = INFINITY;
@@ -412,20 +399,20 @@ double extent_along(const TriMesh& m, const Vec3& up) {
 
 }  // namespace
 
-void validate_mold_options(const MoldOptions& o) {
-  require(std::isfinite(o.wall_mm) && o.wall_mm >= 1 && o.wall_mm <= 200,
-          "--wall must be between 1 and 200 mm");
-  require(std::isfinite(o.sprue_diameter_mm) && o.sprue_diameter_mm > 0 &&
-              o.sprue_diameter_mm < 2 * o.wall_mm,
-          "--sprue-diameter must be > 0 and less than twice --wall");
-  require(std::isfinite(o.vent_diameter_mm) && o.vent_diameter_mm > 0 &&
-              o.vent_diameter_mm <= o.sprue_diameter_mm,
-          "--vent-diameter must be > 0 and at most --sprue-diameter");
-  require(std::isfinite(o.key_clearance_mm) && o.key_clearance_mm >= 0 &&
-              o.key_clearance_mm <= 0.2 * o.wall_mm,
-          "--key-clearance must be between 0 and a fifth of --wall");
-  require(std::isfinite(o.epsilon_mm) && o.epsilon_mm >= 0, "mold epsilon must be >= 0");
-  require(o.gravity_up.allFinite(), "the pouring direction must be finite");
+void MoldOptions::validate() const {
+  require_option(std::isfinite(wall_mm) && wall_mm >= 1 && wall_mm <= 200,
+                 "--wall must be between 1 and 200 mm");
+  require_option(
+      std::isfinite(sprue_diameter_mm) && sprue_diameter_mm > 0 && sprue_diameter_mm < 2 * wall_mm,
+      "--sprue-diameter must be > 0 and less than twice --wall");
+  require_option(std::isfinite(vent_diameter_mm) && vent_diameter_mm > 0 &&
+                     vent_diameter_mm <= sprue_diameter_mm,
+                 "--vent-diameter must be > 0 and at most --sprue-diameter");
+  require_option(
+      std::isfinite(key_clearance_mm) && key_clearance_mm >= 0 && key_clearance_mm <= 0.2 * wall_mm,
+      "--key-clearance must be between 0 and a fifth of --wall");
+  validate_epsilon(epsilon_mm);
+  require_option(gravity_up.allFinite(), "the pouring direction must be finite");
 }
 
 namespace {
@@ -507,8 +494,7 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
   const double span_x = local.max.x() - local.min.x() + 2 * margin;
   const double span_y = local.max.y() - local.min.y() + 2 * margin;
   const double span = std::max(span_x, span_y);
-  const double wanted_cells =
-      opts.epsilon_mm > 0.0 ? std::ceil(span / (1.5 * opts.epsilon_mm)) : kMaxGridCells;
+  const double wanted_cells = std::ceil(span / (1.5 * opts.epsilon_mm));
   g.s = span / std::clamp(wanted_cells, double{kMinGridCells}, double{kMaxGridCells});
   // A fraction of a cell off the part's bounding box, so grid lines do not run along its walls.
   const double shift_x = std::fmod(0.37 + 0.31 * attempt, 1.0),
@@ -722,7 +708,7 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
 }  // namespace
 
 Mold build_mold(const Part& part, const MoldOptions& opts) {
-  validate_mold_options(opts);
+  opts.validate();
   constexpr int kAttempts = 4;
   for (int attempt = 0;; ++attempt) {
     try {
@@ -734,7 +720,7 @@ Mold build_mold(const Part& part, const MoldOptions& opts) {
 }
 
 std::vector<Mold> build_molds(const std::vector<Part>& parts, const MoldOptions& opts) {
-  validate_mold_options(opts);
+  opts.validate();
   std::vector<Mold> molds(parts.size());
   tbb::parallel_for(std::size_t{0}, parts.size(), [&](std::size_t i) {
     try {

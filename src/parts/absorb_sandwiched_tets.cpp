@@ -669,13 +669,17 @@ void check_labeling(const TetMesh& tets, const std::vector<std::int32_t>& label,
 
 }  // namespace
 
+void SandwichOptions::validate() const {
+  require_option(max_rounds >= 0, "sandwich max_rounds must be >= 0");
+  require_option(tiny_piece_share >= 0 && tiny_piece_share <= 1,
+                 "sandwich tiny_piece_share must be in [0, 1]");
+}
+
 SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int32_t>& label,
                                       const std::vector<std::int32_t>& region,
                                       const std::vector<std::vector<Vec3>>& directions,
                                       const TetAllowsLabel& allows, const SandwichOptions& opts) {
-  if (opts.max_rounds < 0 || !(opts.tiny_piece_share >= 0.0 && opts.tiny_piece_share <= 1.0))
-    throw Error(ErrorCode::InvalidOptions,
-                "sandwich repair: max_rounds must be >= 0 and tiny_piece_share in [0, 1]");
+  opts.validate();
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
   check_labeling(tets, label, region, directions);
   const FaceNormals normals = face_normals(tets);

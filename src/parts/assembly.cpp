@@ -1,4 +1,3 @@
-#include <embree3/rtcore.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -7,7 +6,6 @@
 #include <atomic>
 #include <cmath>
 #include <cstdint>
-#include <limits>
 #include <optional>
 #include <string>
 #include <tuple>
@@ -16,6 +14,8 @@
 #include "carve.h"
 #include "dhfcast/error.h"
 #include "dhfcast/parts.h"
+#include "dhfcast/tolerance.h"
+#include "ray_scene.h"
 
 namespace dhfcast {
 namespace {
@@ -28,96 +28,25 @@ struct Crossing {
   std::int32_t triangle;
 };
 
-// Embree context extended with the list that the filter callback fills.
-struct CollectContext {
-  RTCIntersectContext context;
-  std::vector<std::uint64_t>* hits;  // part << 32 | triangle
-};
-
-// Records every hit and rejects it, so a single traversal reports all crossings.
-void collect_hit(const RTCFilterFunctionNArguments* args) {
-  if (args->valid[0] == 0) return;
-  const auto* ctx = reinterpret_cast<const CollectContext*>(args->context);
-  const RTCHit* hit = reinterpret_cast<const RTCHit*>(args->hit);
-  ctx->hits->push_back((std::uint64_t{hit->geomID} << 32) | hit->primID);
-  args->valid[0] = 0;
-}
-
-// A point query for one part's triangles within a radius; stops at the first.
-struct NearQuery {
-  const TriMesh* mesh;
-  unsigned part;
-  Vec3 p;
-  double radius_mm;
-  bool found;
-};
-
-bool near_triangle(RTCPointQueryFunctionArguments* args) {
-  auto* q = static_cast<NearQuery*>(args->userPtr);
-  if (args->geomID != q->part) return false;
-  const Tri& t = q->mesh->triangles[args->primID];
-  const std::vector<Vec3>& v = q->mesh->vertices;
-  if ((closest_on_triangle(q->p, v[t[0]], v[t[1]], v[t[2]]) - q->p).norm() >= q->radius_mm)
-    return false;
-  q->found = true;
-  args->query->radius = 0.0f;  // nothing more to look for
-  return true;
-}
-
 // The cosine below which a face counts as parallel to a ray: a few float steps (2^-24), the
 // precision of the ray's direction as Embree takes it.
 constexpr double kParallel = 1e-6;
 
-// One Embree scene holding every part's boundary; geometry id = part id.
+// The parts' boundaries in one ray scene, surface number = part id.
+std::vector<const TriMesh*> meshes_of(const std::vector<Part>& parts) {
+  std::vector<const TriMesh*> meshes;
+  for (const Part& part : parts) meshes.push_back(&part.mesh);
+  return meshes;
+}
+
 class PartScene {
  public:
-  explicit PartScene(const std::vector<Part>& parts) : parts_(parts) {
-    device_ = rtcNewDevice(nullptr);
-    if (!device_) throw Error(ErrorCode::Internal, "parts: cannot create the ray tracing device");
-    scene_ = rtcNewScene(device_);
-    rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_ROBUST);  // no missed hits on shared edges
-    for (const Part& part : parts) {
-      const RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
-      auto* vertices = static_cast<float*>(
-          rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                  3 * sizeof(float), part.mesh.vertices.size()));
-      for (std::size_t v = 0; v < part.mesh.vertices.size(); ++v)
-        for (int k = 0; k < 3; ++k)
-          vertices[3 * v + k] = static_cast<float>(part.mesh.vertices[v][k]);
-      auto* indices = static_cast<std::uint32_t*>(
-          rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                  3 * sizeof(std::uint32_t), part.mesh.triangles.size()));
-      for (std::size_t f = 0; f < part.mesh.triangles.size(); ++f)
-        for (int k = 0; k < 3; ++k)
-          indices[3 * f + k] = static_cast<std::uint32_t>(part.mesh.triangles[f][k]);
-      rtcSetGeometryIntersectFilterFunction(geom, collect_hit);
-      rtcCommitGeometry(geom);
-      rtcAttachGeometryByID(scene_, geom, static_cast<unsigned>(part.id));
-      rtcReleaseGeometry(geom);
-    }
-    rtcCommitScene(scene_);
-    if (rtcGetDeviceError(device_) != RTC_ERROR_NONE) {
-      rtcReleaseScene(scene_);
-      rtcReleaseDevice(device_);
-      throw Error(ErrorCode::Internal, "parts: cannot build the ray tracing scene");
-    }
-  }
-  ~PartScene() {
-    rtcReleaseScene(scene_);
-    rtcReleaseDevice(device_);
-  }
-  PartScene(const PartScene&) = delete;
-  PartScene& operator=(const PartScene&) = delete;
+  explicit PartScene(std::vector<const TriMesh*> meshes)
+      : meshes_(std::move(meshes)), scene_(meshes_) {}
 
   // Whether part q's boundary passes within radius_mm of p. Thread-safe.
   bool near(std::int32_t q, const Vec3& p, double radius_mm) const {
-    NearQuery near{&parts_[q].mesh, static_cast<unsigned>(q), p, radius_mm, false};
-    const Eigen::Vector3f at = p.cast<float>();
-    RTCPointQuery query{at.x(), at.y(), at.z(), 0.0f, static_cast<float>(radius_mm)};
-    RTCPointQueryContext context;
-    rtcInitPointQueryContext(&context);
-    rtcPointQuery(scene_, &query, &context, near_triangle, &near);
-    return near.found;
+    return scene_.near(q, p, radius_mm);
   }
 
   // Every crossing of the ray origin + t * dir, t > 0, with the parts' boundaries, sorted by t.
@@ -128,27 +57,12 @@ class PartScene {
   // Thread-safe.
   void crossings(const Vec3& origin, const Vec3& dir, std::vector<std::uint64_t>& hits,
                  std::vector<Crossing>& out) const {
-    hits.clear();
     out.clear();
-    CollectContext ctx;
-    rtcInitIntersectContext(&ctx.context);
-    ctx.hits = &hits;
-    RTCRayHit rh{};
-    rh.ray.org_x = static_cast<float>(origin.x());
-    rh.ray.org_y = static_cast<float>(origin.y());
-    rh.ray.org_z = static_cast<float>(origin.z());
-    rh.ray.dir_x = static_cast<float>(dir.x());
-    rh.ray.dir_y = static_cast<float>(dir.y());
-    rh.ray.dir_z = static_cast<float>(dir.z());
-    rh.ray.tnear = 0.0f;
-    rh.ray.tfar = std::numeric_limits<float>::infinity();
-    rh.ray.mask = 0xFFFFFFFFu;  // Debian's Embree is built with ray masks
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(scene_, &ctx.context, &rh);
+    scene_.all_hits(origin, dir, hits);
     for (const std::uint64_t h : hits) {
       const auto part = static_cast<std::int32_t>(h >> 32);
-      const Tri& tri = parts_[part].mesh.triangles[static_cast<std::uint32_t>(h)];
-      const std::vector<Vec3>& v = parts_[part].mesh.vertices;
+      const Tri& tri = meshes_[part]->triangles[static_cast<std::uint32_t>(h)];
+      const std::vector<Vec3>& v = meshes_[part]->vertices;
       const Vec3 normal = (v[tri[1]] - v[tri[0]]).cross(v[tri[2]] - v[tri[0]]);
       const double along = normal.dot(dir);
       if (std::abs(along) <= kParallel * normal.norm() * dir.norm()) continue;
@@ -156,8 +70,8 @@ class PartScene {
       if (t_mm > 0.0)
         out.push_back({t_mm, part, along > 0.0, static_cast<std::int32_t>(std::uint32_t(h))});
     }
-    // Embree reports the hits in an order that depends on its threads: ties are broken to the
-    // end, so equal crossings (an edge hit) come in one order on any thread count.
+    // Along the ray; ties are broken to the end, so equal crossings (an edge hit) come in one
+    // order.
     std::sort(out.begin(), out.end(), [](const Crossing& a, const Crossing& b) {
       return std::tie(a.t_mm, a.part, a.exits, a.triangle) <
              std::tie(b.t_mm, b.part, b.exits, b.triangle);
@@ -165,22 +79,15 @@ class PartScene {
   }
 
  private:
-  const std::vector<Part>& parts_;
-  RTCDevice device_ = nullptr;
-  RTCScene scene_ = nullptr;
+  std::vector<const TriMesh*> meshes_;
+  detail::RayScene scene_;
 };
 
-// The deepest point of the stretch (t0, t1) of origin + t * dir is farther than tolerance_mm
-// from part p's boundary: the middle first (usually the deepest), then every half tolerance, as
-// `dhfcast check` steps.
+// Does the stretch (t0, t1) of origin + t * dir reach deeper than tolerance_mm into part p?
 bool deeper_than(const PartScene& scene, std::int32_t p, const Vec3& origin, const Vec3& dir,
                  double t0, double t1, double tolerance_mm) {
-  if (tolerance_mm == 0.0) return true;
-  auto far = [&](double t) { return !scene.near(p, origin + t * dir, tolerance_mm); };
-  if (far(0.5 * (t0 + t1))) return true;
-  for (double t = t0 + tolerance_mm; t < t1 - tolerance_mm; t += 0.5 * tolerance_mm)
-    if (far(t)) return true;
-  return false;
+  return dhfcast::deeper_than(origin, dir, t0, t1, tolerance_mm,
+                              [&](const Vec3& x) { return !scene.near(p, x, tolerance_mm); });
 }
 
 // Points just inside a mesh's boundary, where a moving part first touches another: near each
@@ -242,10 +149,8 @@ void mark_obstacles(const std::vector<Crossing>& crossings, std::int32_t self, d
       // Repeated entries (a hit on an edge shared by two triangles) count once.
       if (!grazing && entry < 0) entry = static_cast<std::int32_t>(k);
     } else if (entry >= 0) {
-      // Every point of a stretch is within half its length of its ends, on the surface.
       const double t_in = crossings[entry].t_mm;
-      if (c.t_mm - t_in > 2 * tolerance_mm && deep(c.part, t_in, c.t_mm))
-        found.push_back({c.part, t_in, c.t_mm});
+      if (deep(c.part, t_in, c.t_mm)) found.push_back({c.part, t_in, c.t_mm});
       entry = -1;
     }
   }
@@ -295,7 +200,7 @@ std::uint64_t mix(std::uint64_t x) {
 class Collisions {
  public:
   Collisions(const std::vector<Part>& parts, double tolerance_mm)
-      : scene_(parts),
+      : scene_(meshes_of(parts)),
         num_parts_(static_cast<std::int32_t>(parts.size())),
         tolerance_mm_(tolerance_mm),
         samples_(assembly_samples(parts)) {
@@ -532,8 +437,7 @@ void line_gaps(const PartScene& scene, std::int32_t p, const Vec3& origin, const
     }
     if (!c.exits && !inside) {
       inside = true;
-      if (left > -INFINITY && c.t_mm - left > 2 * epsilon_mm &&
-          deeper_than(scene, p, origin, dir, left, c.t_mm, epsilon_mm)) {
+      if (left > -INFINITY && deeper_than(scene, p, origin, dir, left, c.t_mm, epsilon_mm)) {
         std::int32_t met = -1;  // the first other part entered in the gap
         for (const Crossing& o : crossings)
           if (o.part != p && !o.exits && o.t_mm >= left && o.t_mm < c.t_mm) {
@@ -579,17 +483,12 @@ std::vector<DhfGap> part_gaps(const PartScene& scene, const Part& part, std::int
   return gaps;
 }
 
-void check_gap_options(std::int64_t lines, double epsilon_mm) {
-  if (lines < 1 || lines > 100'000'000 || !(epsilon_mm >= 0.0))
-    throw Error(ErrorCode::InvalidOptions, "dhf_gaps: lines must be in 1..1e8, epsilon >= 0");
-}
-
 }  // namespace
 
 std::vector<std::vector<DhfGap>> dhf_gaps(const std::vector<Part>& parts, std::int64_t lines,
                                           double epsilon_mm) {
-  check_gap_options(lines, epsilon_mm);
-  const PartScene scene(parts);
+  detail::validate_gap_options(lines, epsilon_mm);
+  const PartScene scene(meshes_of(parts));
   std::vector<std::vector<DhfGap>> gaps(parts.size());
   for (std::int32_t p = 0; p < static_cast<std::int32_t>(parts.size()); ++p)
     gaps[p] = part_gaps(scene, parts[p], p, lines, epsilon_mm);
@@ -597,15 +496,18 @@ std::vector<std::vector<DhfGap>> dhf_gaps(const std::vector<Part>& parts, std::i
 }
 
 std::int32_t dhf_gap_count(const Part& part, std::int64_t lines, double epsilon_mm) {
-  check_gap_options(lines, epsilon_mm);
+  detail::validate_gap_options(lines, epsilon_mm);
   // Whether a stretch is a gap, and how deep, depends on the part's own boundary only.
-  std::vector<Part> alone{part};
-  alone[0].id = 0;
-  const PartScene scene(alone);
-  return static_cast<std::int32_t>(part_gaps(scene, alone[0], 0, lines, epsilon_mm).size());
+  const PartScene scene({&part.mesh});
+  return static_cast<std::int32_t>(part_gaps(scene, part, 0, lines, epsilon_mm).size());
 }
 
 namespace detail {
+
+void validate_gap_options(std::int64_t lines, double epsilon_mm) {
+  require_option(lines >= 1 && lines <= 100'000'000, "gap lines must be in 1..1e8");
+  validate_epsilon(epsilon_mm);
+}
 
 namespace {
 
@@ -647,7 +549,7 @@ std::vector<PartStretch> part_stretches(const std::vector<Part>& parts, std::int
 
 CarveLines carve_lines(const std::vector<Part>& parts, std::int32_t p, std::int64_t lines,
                        double epsilon_mm) {
-  const PartScene scene(parts);
+  const PartScene scene(meshes_of(parts));
   const LineGrid grid(parts[p], lines);
   CarveLines out;
   out.d = grid.d, out.u = grid.u, out.v = grid.v, out.spacing_mm = grid.spacing_mm;
@@ -667,9 +569,7 @@ CarveLines carve_lines(const std::vector<Part>& parts, std::int32_t p, std::int6
           std::vector<std::size_t> first{0}, every{0};
           for (std::size_t i = 1; i < stretches.size(); ++i) {
             const double t0 = stretches[i - 1].end, t1 = stretches[i].begin;
-            if (t1 - t0 > 2 * epsilon_mm &&
-                deeper_than(scene, p, origin, grid.d, t0, t1, epsilon_mm))
-              first.push_back(i);
+            if (deeper_than(scene, p, origin, grid.d, t0, t1, epsilon_mm)) first.push_back(i);
             every.push_back(i);
           }
           CarveLine line;

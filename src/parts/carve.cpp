@@ -189,8 +189,7 @@ std::string describe(std::int32_t p, const Patch& patch, const std::string& why)
 
 Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsilon_mm,
                        bool exchange, KeptAssembly* assembly) {
-  if (lines < 1 || !(epsilon_mm > 0.0))
-    throw Error(ErrorCode::InvalidOptions, "carving: lines must be >= 1 and epsilon > 0");
+  detail::validate_gap_options(lines, epsilon_mm);
   Carving out;
   // Gaps per part; a part's count depends on its own boundary only (dhf_gap_count()).
   std::vector<std::int32_t> gaps;

@@ -38,6 +38,10 @@ struct CarveLines {
   std::vector<CarveLine> lines;
 };
 
+// The options of dhf_gaps(), dhf_gap_count() and carve_dhf_gaps(): lines in 1..1e8 and a
+// positive epsilon (validate_epsilon()); throws Error{InvalidOptions} otherwise.
+void validate_gap_options(std::int64_t lines, double epsilon_mm);
+
 // Part p's lines that meet it in several stretches, on the grid of dhf_gaps() (about `lines`
 // lines).
 CarveLines carve_lines(const std::vector<Part>& parts, std::int32_t p, std::int64_t lines,

@@ -98,10 +98,14 @@ void summarize(std::vector<double> angles, InterfaceSmoothness& out) {
 
 }  // namespace
 
+void SmoothingOptions::validate() const {
+  require_option(iterations >= 0 && iterations <= 10000, "--smoothing must be between 0 and 10000");
+  require_option(step > 0 && step <= 1, "smoothing step must be in (0, 1]");
+}
+
 void smooth_interfaces(const TetMesh& tets, std::vector<Part>& parts, const TetAllowsPart& allows,
                        const SmoothingOptions& opts) {
-  if (opts.iterations < 0 || !(opts.step > 0.0 && opts.step <= 1.0))
-    throw Error(ErrorCode::InvalidOptions, "smoothing: iterations >= 0 and 0 < step <= 1 expected");
+  opts.validate();
   const std::int32_t num_parts = static_cast<std::int32_t>(parts.size());
 
   // --- 1. one vertex per position, one face per outer triangle and per interface ---

@@ -39,10 +39,6 @@ double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-void require(bool ok, const std::string& what) {
-  if (!ok) throw Error(ErrorCode::InvalidOptions, "invalid option: " + what);
-}
-
 // The tets listed in `subset` as a mesh of their own (vertices renumbered, adjacency rebuilt).
 TetMesh sub_mesh(const TetMesh& tets, const std::vector<std::int32_t>& subset) {
   TetMesh sub;
@@ -434,26 +430,16 @@ std::int32_t fill_gap_rounds(const PartsContext& c, const std::vector<std::int32
 }  // namespace
 
 void validate_options(const DecomposeOptions& o) {
-  require(o.tets.target_tets >= 100 && o.tets.target_tets <= 5'000'000,
-          "--tets must be between 100 and 5000000");
-  require(std::isfinite(o.tets.facet_distance_mm) && o.tets.facet_distance_mm > 0,
-          "--facet-distance must be > 0");
-  require(o.directions >= 6 && o.directions <= 4096, "--directions must be between 6 and 4096");
-  require(std::isfinite(o.access.epsilon_mm) && o.access.epsilon_mm >= 0,
-          "--epsilon must be >= 0");
-  require(std::isfinite(o.segment.alpha) && o.segment.alpha >= 0, "--alpha must be >= 0");
-  require(std::isfinite(o.segment.c_mm) && o.segment.c_mm > 0, "--c must be > 0");
-  require(std::isfinite(o.segment.beta_mm) && o.segment.beta_mm >= 0, "--beta must be >= 0");
-  require(std::isfinite(o.segment.lambda) && o.segment.lambda >= 0, "--lambda must be >= 0");
-  require(o.smoothing.iterations >= 0 && o.smoothing.iterations <= 10000,
-          "--smoothing must be between 0 and 10000");
-  require(o.sandwich.max_rounds >= 0 && o.sandwich.tiny_piece_share >= 0 &&
-              o.sandwich.tiny_piece_share <= 1,
-          "sandwich max_rounds must be >= 0 and tiny_piece_share in [0, 1]");
-  require(o.segment.restarts >= 1 && o.segment.restarts <= 1000,
-          "--restarts must be between 1 and 1000");
-  require(o.candidates >= 1 && o.candidates <= 1000, "--candidates must be between 1 and 1000");
-  if (o.make_molds) validate_mold_options(o.molds);
+  o.tets.validate();
+  require_option(o.directions >= 6 && o.directions <= 4096,
+                 "--directions must be between 6 and 4096");
+  o.access.validate();
+  o.segment.validate();
+  o.smoothing.validate();
+  o.sandwich.validate();
+  require_option(o.candidates >= 1 && o.candidates <= 1000,
+                 "--candidates must be between 1 and 1000");
+  if (o.make_molds) o.molds.validate();
 }
 
 Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,

@@ -327,7 +327,7 @@ void write_output(const std::string& outdir, const std::string& json, const Deco
 namespace dhfcast {
 
 std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts) {
-  validate_mold_options(opts);
+  opts.validate();
   const fs::path out = fs::absolute(outdir).lexically_normal();
   const fs::path json_path = out / "decomposition.json";
   std::ifstream in(json_path, std::ios::binary);

@@ -22,17 +22,6 @@ namespace {
 // Candidates solved on a small covering label set, besides the randomized restarts.
 constexpr std::int32_t kCoveringCandidates = 12;
 
-void check_options(const SegmentOptions& o) {
-  const auto fail = [](const std::string& what) {
-    throw Error(ErrorCode::InvalidOptions, "segmentation: " + what);
-  };
-  if (!(o.alpha >= 0.0) || !std::isfinite(o.alpha)) fail("alpha must be >= 0");
-  if (!(o.c_mm > 0.0) || !std::isfinite(o.c_mm)) fail("c_mm must be > 0");
-  if (!(o.beta_mm >= 0.0) || !std::isfinite(o.beta_mm)) fail("beta_mm must be >= 0");
-  if (!(o.lambda >= 0.0) || !std::isfinite(o.lambda)) fail("lambda must be >= 0");
-  if (o.restarts < 1) fail("restarts must be >= 1");
-}
-
 // Directions kept as labels, ascending. Two directions with the same feasible set give the same
 // data costs everywhere: only the lowest index is kept. A direction whose feasible set is a
 // strict subset of another's costs at least as much on every tet (it is closer to its
@@ -188,9 +177,17 @@ std::vector<std::int32_t> solve_with_labels(const LabelProblem& problem,
 
 }  // namespace
 
+void SegmentOptions::validate() const {
+  require_option(std::isfinite(alpha) && alpha >= 0, "--alpha must be >= 0");
+  require_option(std::isfinite(c_mm) && c_mm > 0, "--c must be > 0");
+  require_option(std::isfinite(beta_mm) && beta_mm >= 0, "--beta must be >= 0");
+  require_option(std::isfinite(lambda) && lambda >= 0, "--lambda must be >= 0");
+  require_option(restarts >= 1 && restarts <= 1000, "--restarts must be between 1 and 1000");
+}
+
 Labeling segment(const TetMesh& tets, const AccessibilityField& field, const SegmentOptions& opts,
                  const Progress& progress) {
-  check_options(opts);
+  opts.validate();
   const auto num_tets = static_cast<std::int32_t>(tets.tets.size());
   if (field.feasible.num_tets() != num_tets || tets.neighbors.size() != tets.tets.size()) {
     throw Error(ErrorCode::InvalidInput,

@@ -25,16 +25,6 @@ constexpr double kInitialSizeFactor = 1.45;
 // Lower bound on the measured count-vs-edge exponent: a boundary-bound count still falls.
 constexpr double kMinExponent = 1.0;
 
-void check_options(const TetOptions& opts) {
-  if (opts.target_tets < 1)
-    throw Error(ErrorCode::InvalidOptions, "tets: target_tets must be at least 1 (got " +
-                                               std::to_string(opts.target_tets) + ")");
-  if (!(opts.facet_distance_mm > 0.0) || !std::isfinite(opts.facet_distance_mm))
-    throw Error(ErrorCode::InvalidOptions,
-                "tets: facet_distance_mm must be a positive number (got " +
-                    std::to_string(opts.facet_distance_mm) + ")");
-}
-
 // Sizes for tets of edge `edge_mm`: a regular tet's circumradius is edge * sqrt(6) / 4, a
 // boundary triangle's edge / sqrt(3).
 detail::MeshSizes sizes_for_edge(double edge_mm, double facet_distance_mm) {
@@ -104,8 +94,15 @@ std::vector<Vec3> boundary_samples(const TetMesh& mesh) {
 
 }  // namespace
 
+void TetOptions::validate() const {
+  require_option(target_tets >= 100 && target_tets <= 5'000'000,
+                 "--tets must be between 100 and 5000000");
+  require_option(std::isfinite(facet_distance_mm) && facet_distance_mm > 0,
+                 "--facet-distance must be > 0");
+}
+
 TetMesh tetrahedralize(const TriMesh& surface, const TetOptions& opts) {
-  check_options(opts);
+  opts.validate();
   const double volume_mm3 = signed_volume(surface);
   if (!(volume_mm3 > 0.0))
     throw Error(ErrorCode::TetrahedralizationFailed,
