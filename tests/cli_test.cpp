@@ -108,6 +108,27 @@ TEST(Cli, MissingFileIsAnIoError) {
   EXPECT_FALSE(fs::exists(dir + "/out"));
 }
 
+TEST(Cli, InputThatIsNoRegularFileIsAnIoError) {
+  const std::string dir = test::temp_dir("not_a_file");
+  const std::pair<std::string, std::string> cases[] = {{dir + "/nope", "no such file"},
+                                                       {dir, "is a directory"},
+                                                       {"/dev/null", "is not a regular file"}};
+  for (const auto& [input, message] : cases) {
+    const RunResult r = run("decompose " + input + " -o " + dir + "/out");
+    EXPECT_EQ(r.exit_code, 4) << r.err;
+    EXPECT_NE(r.err.find(input + ": " + message), std::string::npos) << r.err;
+  }
+  EXPECT_FALSE(fs::exists(dir + "/out"));
+}
+
+TEST(Cli, NegativeThreadsGetAReadableRange) {
+  const std::string dir = test::temp_dir("threads");
+  write_text(dir + "/cube.obj", cube_obj());
+  const RunResult r = run("decompose " + dir + "/cube.obj -o " + dir + "/out --threads -1");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("--threads: Value -1 not in range 0 to 1024"), std::string::npos) << r.err;
+}
+
 TEST(Cli, BadOptionIsAUsageError) {
   const std::string dir = test::temp_dir("opt");
   write_text(dir + "/cube.obj", cube_obj());

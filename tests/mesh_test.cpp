@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <iterator>
@@ -480,8 +481,21 @@ TEST(ReadMesh, TruncatedBinaryStl) {
 TEST(ReadMesh, EmptyFile) { expect_invalid(write_file("empty.obj", ""), "empty file"); }
 
 TEST(ReadMesh, MissingFileIsAnIoError) {
-  const std::string message = load_error("/nonexistent-dir/x.stl", ErrorCode::Io);
-  EXPECT_EQ(message.rfind("cannot open /nonexistent-dir/x.stl: ", 0), 0u) << message;
+  EXPECT_EQ(load_error("/nonexistent-dir/x.stl", ErrorCode::Io),
+            "/nonexistent-dir/x.stl: no such file");
+}
+
+TEST(ReadMesh, DirectoryAndDeviceAreIoErrorsWhateverTheirName) {
+  const std::string dir = test::temp_dir("dir.stl");
+  EXPECT_EQ(load_error(dir, ErrorCode::Io), dir + ": is a directory");
+  EXPECT_EQ(load_error("/dev/null", ErrorCode::Io), "/dev/null: is not a regular file");
+}
+
+TEST(ReadMesh, FileOverTwoGibIsRefusedUnread) {
+  const std::string path = write_file("sparse.stl", "");
+  std::filesystem::resize_file(path, std::uintmax_t{3} << 30);  // sparse: nothing is written
+  expect_invalid(path, "file of 3072 MiB; dhfcast reads meshes of at most 2 GiB");
+  std::filesystem::remove(path);
 }
 
 TEST(ReadMesh, UnknownExtensionListsTheSupportedOnes) {

@@ -35,8 +35,9 @@ struct MeshDiagnostics {
 // Reads a triangle soup from STL (binary or ASCII), OBJ, PLY (ASCII or binary) or OFF, chosen by
 // the file's extension (case-insensitive). Polygons are fan-triangulated. Coincident vertices
 // (identical coordinates) are welded and unused vertices dropped.
-// Throws Error{Io} when the file cannot be opened, Error{InvalidInput} with the file name and a
-// location (line number, byte offset, triangle index) when it is malformed or truncated.
+// Throws Error{Io} when the file does not exist, is not a regular file or cannot be opened,
+// Error{InvalidInput} when it is larger than 2 GiB, or with the file name and a location (line
+// number, byte offset, triangle index) when it is malformed or truncated.
 TriMesh read_mesh(const std::string& path);
 
 // Checks that `mesh` bounds a solid: closed, 2-manifold (edges and vertices), consistently
