@@ -103,7 +103,7 @@ int run_decompose(const CliOptions& cli) {
         oneapi::tbb::global_control::max_allowed_parallelism, cli.threads);
 
   validate_options(cli.decompose);
-  check_output_location(cli.outdir, cli.force);
+  check_output_location(cli.outdir, cli.force, cli.input);
 
   LoadOptions load;
   load.scale = cli.scale;

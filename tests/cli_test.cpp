@@ -2,7 +2,9 @@
 // code and no output folder.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -147,6 +149,54 @@ TEST(Cli, ExistingOutputIsNotOverwrittenWithoutForce) {
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("--force"), std::string::npos) << r.err;
   EXPECT_TRUE(fs::exists(dir + "/out/keep.txt"));
+}
+
+TEST(Cli, OutputThatIsOrHoldsTheInputIsRefusedBeforeAnyWork) {
+  const std::string dir = test::temp_dir("out_is_input");
+  const std::string input = dir + "/in.obj";
+  write_text(input, cube_obj());
+  for (const std::string& out :
+       {input, dir, dir + "/", dir + "/../" + fs::path(dir).filename().string()}) {
+    const RunResult r = run("decompose " + input + " -o " + out + " --force --quiet");
+    EXPECT_EQ(r.exit_code, 4) << out << ": " << r.err;
+    EXPECT_NE(r.err.find("would replace the input"), std::string::npos) << r.err;
+    ASSERT_TRUE(fs::is_regular_file(input));
+  }
+  // A file that is not the input is not replaced by a folder either.
+  write_text(dir + "/notes.txt", "keep");
+  const RunResult r = run("decompose " + input + " -o " + dir + "/notes.txt --force --quiet");
+  EXPECT_EQ(r.exit_code, 4) << r.err;
+  EXPECT_NE(r.err.find("exists and is not a folder"), std::string::npos) << r.err;
+  EXPECT_TRUE(fs::is_regular_file(dir + "/notes.txt"));
+  // A parent folder nothing can be created in (even as root) is found before the work.
+  const RunResult proc = run("decompose " + input + " -o /proc/dhfcast-out --quiet");
+  EXPECT_EQ(proc.exit_code, 4) << proc.err;
+  EXPECT_NE(proc.err.find("cannot write in /proc"), std::string::npos) << proc.err;
+}
+
+TEST(Cli, OutputWithTrailingSlashIsWrittenAndReplacedWholeLeavingNoTemporaryFolder) {
+  const std::string dir = test::temp_dir("slash");
+  write_text(dir + "/cube.obj", cube_obj());
+  const std::string common = " --tets 2000 --directions 64 --restarts 2 --quiet --no-molds";
+  RunResult r = run("decompose " + dir + "/cube.obj -o " + dir + "/out/" + common);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir + "/out/parts/part_000.stl"));
+  // Leftovers of a killed run: removed when their process is gone, kept while it runs.
+  const pid_t dead = fork();
+  if (dead == 0) _exit(0);
+  waitpid(dead, nullptr, 0);
+  fs::create_directories(dir + "/.out.dhfcast-tmp-" + std::to_string(dead) + "/parts");
+  fs::create_directories(dir + "/.out.dhfcast-tmp-1");
+  write_text(dir + "/out/stale.txt", "old");
+  r = run("decompose " + dir + "/cube.obj -o " + dir + "/out/ --force" + common);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir + "/out/parts/part_000.stl"));
+  EXPECT_FALSE(fs::exists(dir + "/out/stale.txt"));
+  std::vector<std::string> names;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir))
+    names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(names, (std::vector<std::string>{".out.dhfcast-tmp-1", "cube.obj", "out"}));
 }
 
 TEST(Cli, CubeGivesOnePartAndTheContract) {

@@ -27,8 +27,9 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                                bool include_timings = true);
 
 // Writes decomposition.json and parts/part_NNN.stl into `outdir`: everything goes to a
-// temporary folder beside it, renamed to `outdir` at the end, so a failure leaves no
-// half-written output. An existing `outdir` is replaced only when `replace` is true.
+// temporary folder beside it (".OUTNAME.dhfcast-tmp-PID"; a dead process's are removed), swapped
+// with `outdir` in one rename at the end, so a failure or a kill leaves no half-written output.
+// An existing `outdir` is replaced only when `replace` is true.
 // Throws Error{Io}.
 void write_output(const std::string& outdir, const std::string& json, const Decomposition& d,
                   bool replace);
@@ -41,8 +42,9 @@ void write_output(const std::string& outdir, const std::string& json, const Deco
 // a dhfcast decomposition, Error{InvalidOptions} for bad options.
 std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts);
 
-// Throws Error{Io} when `outdir` cannot be written later: it exists and `replace` is false, or
-// its parent folder does not exist. Lets the CLI fail before the long computation.
-void check_output_location(const std::string& outdir, bool replace);
+// Throws Error{Io} when `outdir` cannot be written later: it is or holds `input` (when given),
+// it exists and is not a folder, it exists and `replace` is false, or its parent folder does not
+// exist or cannot be written. Lets the CLI fail before the long computation.
+void check_output_location(const std::string& outdir, bool replace, const std::string& input = "");
 
 }  // namespace dhfcast

@@ -1,7 +1,12 @@
 #include "dhfcast/report.h"
 
+#include <fcntl.h>
+#include <signal.h>
+#include <stdio.h>  // renameat2, RENAME_EXCHANGE
 #include <unistd.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -272,25 +277,110 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
   return j.dump(2) + "\n";
 }
 
-void check_output_location(const std::string& outdir, bool replace) {
-  const fs::path out = fs::absolute(outdir);
+namespace {
+
+// The folder `outdir` names, absolute, without a trailing separator ("out/" is "out").
+fs::path folder_path(const std::string& outdir) {
+  fs::path out = fs::absolute(outdir).lexically_normal();
+  return out.has_filename() ? out : out.parent_path();
+}
+
+// Where a folder's replacement is built, beside it so one rename swaps it in. The pid tells a
+// dead writer's leftovers (see remove_stale_temps()) from a running one's.
+constexpr const char* kTempTag = ".dhfcast-tmp-";
+
+// ".OUTNAME.dhfcast-tmp-" (appended to, not prepended: GCC 12 warns about "." + name).
+std::string temp_prefix(const fs::path& out) {
+  std::string prefix = ".";
+  prefix += out.filename().string();
+  return prefix += kTempTag;
+}
+
+fs::path temp_beside(const fs::path& out) {
+  return out.parent_path() / (temp_prefix(out) + std::to_string(::getpid()));
+}
+
+// Removes the temporary folders beside `out` of processes that no longer run (killed while
+// writing).
+void remove_stale_temps(const fs::path& out) {
+  const std::string prefix = temp_prefix(out);
   std::error_code ec;
-  if (fs::exists(out, ec) && !replace)
+  for (const fs::directory_entry& e : fs::directory_iterator(out.parent_path(), ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind(prefix, 0) != 0) continue;
+    const std::string pid = name.substr(prefix.size());
+    if (pid.empty() || pid.size() > 9 || pid.find_first_not_of("0123456789") != std::string::npos)
+      continue;
+    if (::kill(std::stoi(pid), 0) != 0 && errno == ESRCH) fs::remove_all(e.path(), ec);
+  }
+}
+
+// Puts the folder `tmp` at `out`, replacing `out` if it exists. With RENAME_EXCHANGE one rename
+// swaps them, so `out` is whole, old or new, at every instant; the old one, now at `tmp`, is
+// removed after. File systems without it get two renames, the old folder kept until the second.
+void swap_in(const fs::path& tmp, const fs::path& out, const std::string& name) {
+  std::error_code ec;
+  if (!fs::exists(fs::symlink_status(out, ec))) {
+    fs::rename(tmp, out, ec);
+    if (ec) io_error("cannot create " + name, ec);
+    return;
+  }
+  if (::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, out.c_str(), RENAME_EXCHANGE) == 0) {
+    fs::remove_all(tmp, ec);
+    return;
+  }
+  if (errno != EINVAL && errno != ENOSYS)
+    io_error("cannot replace " + name, std::error_code(errno, std::generic_category()));
+  const fs::path old = tmp.string() + "-old";
+  fs::rename(out, old, ec);
+  if (ec) io_error("cannot replace " + name, ec);
+  fs::rename(tmp, out, ec);
+  if (ec) {
+    fs::rename(old, out);
+    io_error("cannot create " + name, ec);
+  }
+  fs::remove_all(old, ec);
+}
+
+// True when `inner` is `outer` or lies inside it (both absolute).
+bool is_within(const fs::path& inner, const fs::path& outer) {
+  std::error_code ec;
+  const fs::path a = fs::weakly_canonical(inner, ec), b = fs::weakly_canonical(outer, ec);
+  const auto [end_b, end_a] = std::mismatch(b.begin(), b.end(), a.begin(), a.end());
+  return end_b == b.end();
+}
+
+}  // namespace
+
+void check_output_location(const std::string& outdir, bool replace, const std::string& input) {
+  const fs::path out = folder_path(outdir);
+  std::error_code ec;
+  if (!input.empty() && is_within(fs::absolute(input), out))
+    throw Error(ErrorCode::Io, outdir + " would replace the input " + input +
+                                   "; choose an output folder that does not hold it");
+  const fs::file_status status = fs::symlink_status(out, ec);
+  if (fs::exists(status) && !fs::is_directory(fs::status(out, ec)))
+    throw Error(ErrorCode::Io, outdir + " exists and is not a folder");
+  if (fs::exists(status) && !replace)
     throw Error(ErrorCode::Io, outdir + " already exists; use --force to replace it");
   if (!fs::is_directory(out.parent_path(), ec))
     throw Error(ErrorCode::Io, "cannot create " + outdir + ": folder " +
                                    out.parent_path().string() + " does not exist");
+  // The folder is built beside `out`: find out now, not after the work, if that is allowed.
+  const fs::path probe = temp_beside(out);
+  fs::remove_all(probe, ec);
+  if (!fs::create_directory(probe, ec))
+    io_error("cannot create " + outdir + ": cannot write in " + out.parent_path().string(), ec);
+  fs::remove(probe, ec);
 }
 
 void write_output(const std::string& outdir, const std::string& json, const Decomposition& d,
                   bool replace) {
   check_output_location(outdir, replace);
-  const fs::path out = fs::absolute(outdir).lexically_normal();
-  const fs::path parent = out.parent_path();
-  const std::string stem = out.filename().string();
-  const fs::path tmp = parent / ("." + stem + ".tmp-" + std::to_string(::getpid()));
+  const fs::path out = folder_path(outdir);
+  remove_stale_temps(out);
+  const fs::path tmp = temp_beside(out);
   std::error_code ec;
-  fs::remove_all(tmp, ec);
   try {
     fs::create_directories(tmp / "parts", ec);
     if (ec) io_error("cannot create " + tmp.string(), ec);
@@ -302,20 +392,7 @@ void write_output(const std::string& outdir, const std::string& json, const Deco
     f << json;
     f.close();
     if (!f) throw Error(ErrorCode::Io, "cannot write " + (tmp / "decomposition.json").string());
-
-    // Swap in the new folder; the old one (if replacing) is removed only after the rename.
-    const fs::path old = parent / ("." + stem + ".old-" + std::to_string(::getpid()));
-    const bool had_old = fs::exists(out);
-    if (had_old) {
-      fs::rename(out, old, ec);
-      if (ec) io_error("cannot replace " + outdir, ec);
-    }
-    fs::rename(tmp, out, ec);
-    if (ec) {
-      if (had_old) fs::rename(old, out);
-      io_error("cannot create " + outdir, ec);
-    }
-    if (had_old) fs::remove_all(old, ec);
+    swap_in(tmp, out, outdir);
   } catch (...) {
     fs::remove_all(tmp, ec);
     throw;
