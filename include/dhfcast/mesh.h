@@ -46,6 +46,11 @@ TriMesh read_mesh(const std::string& path);
 // Pre: vertices are welded (as read_mesh() returns them).
 MeshDiagnostics validate_mesh(const TriMesh& mesh);
 
+// What keeps `mesh` from being a part of a decomposition, or "": as validate_mesh(), but a part
+// may touch itself along edges and at vertices (its welded mesh is then non-manifold there) as
+// long as the directed uses of every edge cancel.
+std::string part_solid_problem(const TriMesh& mesh);
+
 // Pairs of triangles of `mesh` (ascending indices, at most max_pairs pairs) that intersect other
 // than along the vertices or edge they share; exact predicates. Pre: `mesh` is a surface mesh
 // (every edge in at most two triangles, consistently oriented); else throws Error{Internal}.
