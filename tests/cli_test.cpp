@@ -1,6 +1,7 @@
 // Runs the dhfcast executable as a user would: bad input gets a one-line error, a non-zero exit
 // code and no output folder.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -252,6 +253,69 @@ TEST(Cli, NoMoldsSkipsThemAndMoldsBuildsThemLater) {
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("--sprue-diameter"), std::string::npos) << r.err;
   EXPECT_EQ(run("molds " + dir + "/nowhere --quiet").exit_code, 4);
+}
+
+std::string read_text(const std::string& path) {
+  std::stringstream text;
+  text << std::ifstream(path, std::ios::binary).rdbuf();
+  return text.str();
+}
+
+TEST(Cli, MoldsRefusesABadFolderBeforeAnyWorkAndLeavesItUntouched) {
+  const std::string dir = test::temp_dir("molds_bad");
+  write_text(dir + "/cube.obj", cube_obj());
+  write_text(dir + "/open.obj", cube_obj(1));
+  ASSERT_EQ(run("decompose " + dir + "/cube.obj -o " + dir +
+                "/out --tets 2000 --directions 64 --restarts 2 --quiet --no-molds")
+                .exit_code,
+            0);
+  const std::string json_path = dir + "/out/decomposition.json";
+  const std::string good = read_text(json_path);
+  fs::create_directory_symlink(dir + "/out/parts", dir + "/out/linked");
+  fs::copy_file(dir + "/open.obj", dir + "/out/parts/open.obj");
+  // Each edit of decomposition.json, and what the error names.
+  auto replaced = [&](const std::string& from, const std::string& to) {
+    std::string text = good;
+    return text.replace(text.find(from), from.size(), to);
+  };
+  const std::string mesh = "\"mesh\": \"parts/part_000.stl\"";
+  const std::pair<std::string, std::string> cases[] = {
+      {replaced(mesh, "\"mesh\": \"parts/open.obj\""),
+       "parts[0] mesh parts/open.obj is not a solid: not closed"},
+      {replaced("\"direction\": [", "\"direction\": [1e308, 1e308, 0], \"was\": ["),
+       "parts[0].direction is not a number within +-1e+06"},
+      {replaced(mesh, "\"mesh\": \"" + dir + "/out/parts/part_000.stl\""),
+       "is not relative to the folder"},
+      {replaced(mesh, "\"mesh\": \"parts/../parts/part_000.stl\""), "has a '..' component"},
+      {replaced(mesh, "\"mesh\": \"linked/part_000.stl\""), "goes through the symlink linked"},
+      {replaced("\"parameters\": {", "\"parameters\": 1, \"was\": {"),
+       "parameters is not an object"},
+      {replaced("\"epsilon_mm\": 0.4", "\"epsilon_mm\": \"0.4\""),
+       "parameters.epsilon_mm is not a number"},
+      {replaced("\"epsilon_mm\": 0.4", "\"epsilon_mm\": 1e400"), "number overflow"},
+      {replaced("\"format\"", "\"deep\": " + std::string(100000, '[') +
+                                   std::string(100000, ']') + ", \"format\""),
+       "deeper than 64 levels"}};
+  for (const auto& [text, message] : cases) {
+    write_text(json_path, text);
+    const RunResult r = run("molds " + dir + "/out --quiet");
+    EXPECT_EQ(r.exit_code, 3) << r.err;
+    EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
+    EXPECT_EQ(read_text(json_path), text);
+    EXPECT_FALSE(fs::exists(dir + "/out/molds"));
+  }
+  // A good folder is swapped whole: the part file is the same file, linked, and no temporary
+  // folder is left beside it.
+  write_text(json_path, good);
+  struct stat before {}, after {};
+  ::stat((dir + "/out/parts/part_000.stl").c_str(), &before);
+  ASSERT_EQ(run("molds " + dir + "/out --quiet").exit_code, 0);
+  ::stat((dir + "/out/parts/part_000.stl").c_str(), &after);
+  EXPECT_EQ(before.st_ino, after.st_ino);
+  EXPECT_TRUE(fs::exists(dir + "/out/molds/part_000_up.stl"));
+  EXPECT_TRUE(fs::is_symlink(dir + "/out/linked"));
+  for (const fs::directory_entry& e : fs::directory_iterator(dir))
+    EXPECT_EQ(e.path().filename().string().find(".dhfcast-tmp-"), std::string::npos) << e.path();
 }
 
 TEST(Cli, PartsAreCutFromTheInputUnlessTetSurfaceIsAsked) {

@@ -11,10 +11,13 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <system_error>
 
 #include "dhfcast/error.h"
+#include "dhfcast/folder.h"
 #include "dhfcast/mesh.h"
 
 namespace fs = std::filesystem;
@@ -403,44 +406,107 @@ void write_output(const std::string& outdir, const std::string& json, const Deco
 
 namespace dhfcast {
 
-std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts) {
-  validate_mold_options(opts);
-  const fs::path out = fs::absolute(outdir).lexically_normal();
-  const fs::path json_path = out / "decomposition.json";
-  std::ifstream in(json_path, std::ios::binary);
-  if (!in) throw Error(ErrorCode::Io, "cannot read " + json_path.string());
-  ordered_json j;
-  try {
-    j = ordered_json::parse(in);
-  } catch (const std::exception& e) {
-    throw Error(ErrorCode::InvalidInput, json_path.string() + ": not valid JSON");
-  }
-  if (!j.is_object() || j.value("format", "") != "dhfcast-decomposition" ||
-      !j.contains("parts") || !j["parts"].is_array())
-    throw Error(ErrorCode::InvalidInput,
-                json_path.string() + ": not a dhfcast decomposition (format, parts)");
-  if (j["parameters"].is_object() && j["parameters"].contains("epsilon_mm"))
-    opts.epsilon_mm = j["parameters"]["epsilon_mm"].get<double>();
+namespace {
 
+// Fills the new folder `to` with the entries of `from` but those named in `skip`: files are
+// hard-linked (copied where the file system cannot link), symlinks copied as links.
+void link_folder(const fs::path& from, const fs::path& to,
+                 std::initializer_list<const char*> skip) {
+  std::error_code ec;
+  for (const fs::directory_entry& e : fs::directory_iterator(from, ec)) {
+    const fs::path name = e.path().filename();
+    if (std::ranges::any_of(skip, [&](const char* s) { return name == s; })) continue;
+    constexpr auto kTree = fs::copy_options::recursive | fs::copy_options::copy_symlinks;
+    fs::copy(e.path(), to / name, kTree | fs::copy_options::create_hard_links, ec);
+    if (ec) {
+      fs::remove_all(to / name, ec);
+      fs::copy(e.path(), to / name, kTree, ec);
+    }
+    if (ec) io_error("cannot copy " + e.path().string(), ec);
+  }
+  if (ec) io_error("cannot read " + from.string(), ec);
+}
+
+// A number of decomposition.json within +-limit; else a bad-folder error naming `field`.
+double folder_number(const ordered_json& j, double limit, const std::string& field,
+                     const std::string& json_name) {
+  if (!j.is_number() || !(std::abs(j.get<double>()) <= limit)) {
+    char range[32];
+    std::snprintf(range, sizeof range, "%g", limit);
+    throw Error(ErrorCode::InvalidInput,
+                json_name + ": " + field + " is not a number within +-" + range);
+  }
+  return j.get<double>();
+}
+
+// The parts of the folder `out` as its decomposition.json lists them, each mesh read and checked
+// to be a solid. Throws Error{InvalidInput} naming what is wrong before anything is built.
+std::vector<Part> read_folder_parts(const fs::path& out, const ordered_json& j,
+                                    const std::string& json_name) {
+  auto bad = [&](const std::string& what) {
+    throw Error(ErrorCode::InvalidInput, json_name + ": " + what);
+  };
   std::vector<Part> parts;
   for (const auto& jp : j["parts"]) {
+    const std::string where = "parts[" + std::to_string(parts.size()) + "]";
+    if (!jp.is_object() || !jp.contains("id") || !jp["id"].is_number_integer() ||
+        jp["id"] != parts.size())
+      bad(where + " has no id " + std::to_string(parts.size()) + " (ids are 0..n-1)");
+    if (!jp.contains("mesh") || !jp["mesh"].is_string()) bad(where + " has no mesh file name");
+    const ordered_json& d = jp.contains("direction") ? jp["direction"] : ordered_json();
+    if (!d.is_array() || d.size() != 3) bad(where + " has no direction [x, y, z]");
     Part p;
-    try {
-      p.id = jp.at("id").get<std::int32_t>();
-      const auto& d = jp.at("direction");
-      p.direction = Vec3(d.at(0).get<double>(), d.at(1).get<double>(), d.at(2).get<double>());
-      p.mesh = read_mesh((out / jp.at("mesh").get<std::string>()).string());
-    } catch (const nlohmann::json::exception&) {
-      throw Error(ErrorCode::InvalidInput,
-                  json_path.string() + ": a part lacks its id, direction or mesh");
-    }
-    if (p.id != static_cast<std::int32_t>(parts.size()) || !(p.direction.norm() > 0))
-      throw Error(ErrorCode::InvalidInput,
-                  json_path.string() + ": part ids are not 0..n-1 or a direction is zero");
+    p.id = static_cast<std::int32_t>(parts.size());
+    for (int k = 0; k < 3; ++k)
+      p.direction[k] = folder_number(d[k], kMaxFolderCoordinateMm, where + ".direction", json_name);
+    if (!(p.direction.norm() > 0)) bad(where + ".direction is zero");
     p.direction.normalize();
+    fs::path path;
+    const std::string name = jp["mesh"].get<std::string>();
+    if (const std::string wrong = folder_file(out, name, path); !wrong.empty())
+      bad(where + " mesh " + wrong);
+    p.mesh = read_mesh(path.string());
+    if (const std::string problem = part_solid_problem(p.mesh); !problem.empty())
+      bad(where + " mesh " + name + " is not a solid: " + problem);
     p.volume_mm3 = signed_volume(p.mesh);
     parts.push_back(std::move(p));
   }
+  return parts;
+}
+
+}  // namespace
+
+std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts) {
+  validate_mold_options(opts);
+  std::error_code ec;
+  // The real folder, so a symlink to it is not what gets swapped.
+  const fs::path out = fs::weakly_canonical(folder_path(outdir), ec);
+  const fs::path json_path = out / "decomposition.json";
+  const std::string json_name = json_path.string();
+  std::ifstream in(json_path, std::ios::binary);
+  if (!in) throw Error(ErrorCode::Io, "cannot read " + json_name);
+  const std::string text(std::istreambuf_iterator<char>(in), {});
+  auto bad = [&](const std::string& what) {
+    throw Error(ErrorCode::InvalidInput, json_name + ": " + what);
+  };
+  if (const std::string deep = json_nesting_problem(text); !deep.empty()) bad(deep);
+  ordered_json j;
+  try {
+    j = ordered_json::parse(text);
+  } catch (const std::exception& e) {  // also numbers no double holds (1e400)
+    bad(std::string("not valid JSON: ") + e.what());
+  }
+  if (!j.is_object() || j.value("format", "") != "dhfcast-decomposition" ||
+      !j.contains("parts") || !j["parts"].is_array())
+    bad("not a dhfcast decomposition (format, parts)");
+  if (j.contains("parameters") && !j["parameters"].is_object()) bad("parameters is not an object");
+  if (j.contains("parameters") && j["parameters"].contains("epsilon_mm")) {
+    opts.epsilon_mm = folder_number(j["parameters"]["epsilon_mm"], kMaxFolderCoordinateMm,
+                                    "parameters.epsilon_mm", json_name);
+    if (!(opts.epsilon_mm > 0)) bad("parameters.epsilon_mm is not > 0");
+  }
+  if (j.contains("timings_s") && !j["timings_s"].is_object()) bad("timings_s is not an object");
+  const std::vector<Part> parts = read_folder_parts(out, j, json_name);
 
   const auto t0 = std::chrono::steady_clock::now();
   const std::vector<Mold> molds = build_molds(parts, opts);
@@ -449,30 +515,22 @@ std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts) {
 
   for (std::size_t i = 0; i < parts.size(); ++i) j["parts"][i]["molds"] = mold_json(molds[i]);
   j["parameters"]["molds"] = mold_parameters_json(opts);
-  if (j.contains("timings_s") && j["timings_s"].is_object()) j["timings_s"]["molds"] = seconds;
+  if (j.contains("timings_s")) j["timings_s"]["molds"] = seconds;
 
-  // New files beside the old ones, then swapped in: a failure leaves the folder as it was.
-  const std::string pid = std::to_string(::getpid());
-  const fs::path tmp = out / (".molds.tmp-" + pid);
-  std::error_code ec;
-  fs::remove_all(tmp, ec);
+  // The folder's new state is built whole beside it (the part files linked, not copied) and
+  // swapped in with one rename: a kill or a failure leaves the old folder or the new one.
+  remove_stale_temps(out);
+  const fs::path tmp = temp_beside(out);
   try {
+    if (!fs::create_directory(tmp, ec)) io_error("cannot create " + tmp.string(), ec);
+    link_folder(out, tmp, {"molds", "decomposition.json"});
     write_mold_files(tmp.string(), molds);
     fs::create_directories(tmp / "molds", ec);
     std::ofstream f(tmp / "decomposition.json", std::ios::binary);
     f << j.dump(2) << "\n";
     f.close();
     if (!f) throw Error(ErrorCode::Io, "cannot write " + (tmp / "decomposition.json").string());
-    const fs::path old = out / (".molds.old-" + pid);
-    fs::remove_all(old, ec);
-    if (fs::exists(out / "molds")) fs::rename(out / "molds", old, ec);
-    if (ec) io_error("cannot replace " + (out / "molds").string(), ec);
-    fs::rename(tmp / "molds", out / "molds", ec);
-    if (ec) io_error("cannot create " + (out / "molds").string(), ec);
-    fs::rename(tmp / "decomposition.json", json_path, ec);
-    if (ec) io_error("cannot replace " + json_path.string(), ec);
-    fs::remove_all(old, ec);
-    fs::remove_all(tmp, ec);
+    swap_in(tmp, out, outdir);
   } catch (...) {
     fs::remove_all(tmp, ec);
     throw;
