@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <bit>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -476,6 +477,21 @@ TEST(ReadMesh, TruncatedBinaryStl) {
   expect_invalid(write_file("truncated_solid.stl", solid_header.substr(0, 500)),
                  "truncated binary STL: header says 12 triangles (684 bytes) but the file has 500 "
                  "bytes");
+}
+
+TEST(ReadMesh, AsciiStlWithByteOrderMarkOrInCapitals) {
+  expect_welded_box(read_mesh(write_file("bom.stl", "\xEF\xBB\xBF" + ascii_stl(box()))));
+  std::string shouting = ascii_stl(box());
+  for (char& c : shouting) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  expect_welded_box(read_mesh(write_file("shouting.stl", shouting)));
+}
+
+TEST(ReadMesh, NulByteInAsciiStlIsNamedWhereItIs) {
+  std::string text = ascii_stl(box());
+  const std::size_t at = text.find("vertex", text.find("vertex") + 1);  // line 5
+  text.insert(at, 1, '\0');
+  expect_invalid(write_file("nul.stl", text),
+                 "line 5: NUL byte at byte offset " + std::to_string(at) + " of an ASCII STL");
 }
 
 TEST(ReadMesh, EmptyFile) { expect_invalid(write_file("empty.obj", ""), "empty file"); }
