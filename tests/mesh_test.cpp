@@ -424,6 +424,33 @@ TEST(LoadSolid, NanCoordinateIsReported) {
   expect_invalid(path, "contains a NaN or infinite coordinate at vertex 0");
 }
 
+// Two boxes' triangles in one mesh; `inward` flips the second.
+std::string two_boxes(const std::string& name, const Vec3& lo, const Vec3& hi, bool inward) {
+  TriMesh mesh = test::make_box(Vec3::Zero(), Vec3(30, 30, 30));
+  TriMesh second = test::make_box(lo, hi);
+  if (inward) flip_orientation(second);
+  const auto offset = static_cast<std::int32_t>(mesh.vertices.size());
+  mesh.vertices.insert(mesh.vertices.end(), second.vertices.begin(), second.vertices.end());
+  for (const Tri& t : second.triangles)
+    mesh.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+  const std::string path = write_file(name, "");
+  write_stl(path, mesh);
+  return path;
+}
+
+TEST(LoadSolid, SeveralSolidsAreRefusedACavityIsNot) {
+  expect_invalid(two_boxes("disjoint.stl", Vec3(40, 0, 0), Vec3(50, 10, 10), false),
+                 "has 2 separate shells, 2 of them facing outward (disjoint or nested solids)");
+  expect_invalid(two_boxes("nested.stl", Vec3(10, 10, 10), Vec3(20, 20, 20), false),
+                 "has 2 separate shells, 2 of them facing outward (disjoint or nested solids)");
+  expect_invalid(two_boxes("inside_out.stl", Vec3(40, 0, 0), Vec3(50, 10, 10), true),
+                 "has 2 separate shells: one faces inward but lies outside the outer one");
+  const LoadedSolid hollow =
+      load_solid(two_boxes("hollow.stl", Vec3(10, 10, 10), Vec3(20, 20, 20), true));
+  EXPECT_NEAR(signed_volume(hollow.mesh), 27000.0 - 1000.0, 1e-9);
+  EXPECT_FALSE(hollow.flipped);
+}
+
 TEST(LoadSolid, InvertedBoxIsFlipped) {
   TriMesh inverted = box();
   flip_orientation(inverted);

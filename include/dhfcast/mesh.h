@@ -65,7 +65,9 @@ struct LoadedSolid {
 
 // read_mesh() + scaling + validate_mesh(); flips a globally inverted mesh (and says so in the
 // result). Throws Error{InvalidInput} with "PATH: <first problem>" when the mesh is not a valid
-// solid, or when it is absurdly scaled (bounding-box diagonal outside [0.1 mm, 100 m]).
+// solid, when it is several solids (more than one shell facing outward, or an inward one outside
+// the outer shell; inward shells inside it are cavities, and fine), or when it is absurdly scaled
+// (bounding-box diagonal outside [0.1 mm, 100 m]).
 LoadedSolid load_solid(const std::string& path, const LoadOptions& opts = {});
 
 // Writes a binary STL (float32, per-triangle normals). Throws Error{Io}.
