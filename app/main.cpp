@@ -67,6 +67,9 @@ class ProgressPrinter {
   int last_percent_ = -1;
 };
 
+// --threads: CLI11's NonNegativeNumber would print DBL_MAX as the upper bound.
+const CLI::Range kThreadRange(0, 1024);
+
 // The names --units takes, and the size of one unit in mm.
 const std::map<std::string, double> kUnitsToMm = {
     {"mm", 1.0}, {"cm", 10.0}, {"m", 1000.0}, {"in", 25.4}};
@@ -101,7 +104,7 @@ int run_decompose(const CliOptions& cli) {
         oneapi::tbb::global_control::max_allowed_parallelism, cli.threads);
 
   validate_options(cli.decompose);
-  check_output_location(cli.outdir, cli.force);
+  check_output_location(cli.outdir, cli.force, cli.input);
 
   LoadOptions load;
   load.scale = cli.scale;
@@ -267,7 +270,7 @@ int main(int argc, char** argv) {
       ->excludes(dec_scale)
       ->excludes(dec_units);
   dec->add_option("--threads", cli.threads, "Worker threads (0: all cores)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kThreadRange);
   dec->add_flag("-q,--quiet", cli.quiet, "Print only errors and warnings");
   dec->add_flag("-f,--force", cli.force, "Replace OUTDIR if it exists");
 
@@ -280,7 +283,7 @@ int main(int argc, char** argv) {
   mld->add_option("outdir", mold_outdir, "Folder written by dhfcast decompose")->required();
   add_mold_options(mld, mold_opts);
   mld->add_option("--threads", mold_threads, "Worker threads (0: all cores)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kThreadRange);
   mld->add_flag("-q,--quiet", mold_quiet, "Print only errors and warnings");
 
   CheckOptions check_opts;
@@ -333,7 +336,7 @@ int main(int argc, char** argv) {
   chk->add_option("--seed", check_opts.seed, "Seed of the sampling")->capture_default_str();
   int check_threads = 0;
   chk->add_option("--threads", check_threads, "Worker threads (0: all cores)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kThreadRange);
 
   try {
     app.parse(argc, argv);

@@ -619,6 +619,70 @@ TEST(Check, ContractViolationsAreFoundAndStopTheGeometricChecksWhenNeeded) {
   EXPECT_TRUE(item(garbage, "dhf").skipped);
 }
 
+TEST(Check, FileNamesLeadingOutOfTheFolderFailContractAndAreNotOpened) {
+  // Outside the folder: a copy of part 1 a bad name would reach.
+  const Folder outside = write_folder("outside", box(kLo, kHi), two_boxes(false), {0, 1});
+  const std::string stray = (fs::path(outside.outdir) / "parts/part_001.stl").string();
+  const std::pair<std::string, std::string> names[] = {
+      {stray, " is not relative to the folder"},
+      {"../../" + fs::relative(stray, fs::path(outside.outdir).parent_path().parent_path()).string(),
+       " has a '..' component"},
+      {"parts/link.stl", " goes through the symlink parts/link.stl"},
+      {"linked/part_001.stl", " goes through the symlink linked"}};
+  for (const auto& [name, wrong] : names) {
+    const Folder f = write_folder("escape", box(kLo, kHi), two_boxes(false), {0, 1},
+                                  [&](nlohmann::json& j) { j["parts"][1]["mesh"] = name; });
+    fs::create_symlink(stray, fs::path(f.outdir) / "parts/link.stl");
+    fs::create_directory_symlink(fs::path(outside.outdir) / "parts", fs::path(f.outdir) / "linked");
+    const CheckReport r = run(f);
+    EXPECT_EQ(item(r, "contract").summary, "parts[1] mesh " + name + wrong);
+    EXPECT_TRUE(item(r, "coverage").skipped);
+  }
+  // Mold halves and carved voids go the same way.
+  const CheckReport molds = run(write_folder(
+      "escape_molds", box(kLo, kHi), two_boxes(true), {0, 1}, [&](nlohmann::json& j) {
+        j["parts"][0]["molds"]["down"] = "../molds/part_000_down.stl";
+        j["carving"] = {{"voids", {{{"part", 0}, {"mesh", stray}, {"volume_mm3", 1.0}}}}};
+      }));
+  EXPECT_EQ(item(molds, "contract").summary,
+            "parts[0] mold ../molds/part_000_down.stl has a '..' component (and 1 more)");
+}
+
+TEST(Check, NumbersOutOfRangeAndDeepNestingFailContractNotTheProgram) {
+  auto contract_of = [](const std::string& tag, std::function<void(nlohmann::json&)> edit) {
+    return item(run(write_folder(tag, box(kLo, kHi), two_boxes(true), {0, 1}, edit)), "contract");
+  };
+  // 1e308 made the checker die of SIGFPE, 1e20 hang.
+  for (double t : {1e308, 1e20}) {
+    const CheckItem c = contract_of("translation", [t](nlohmann::json& j) {
+      j["parts"][0]["molds"]["up_to_model"] = {{1, 0, 0, t}, {0, 1, 0, 0}, {0, 0, 1, 0}};
+    });
+    EXPECT_EQ(c.summary, "parts[0] molds.up_to_model has an entry that is not a number within "
+                         "+-1e+06");
+  }
+  EXPECT_EQ(contract_of("volume", [](nlohmann::json& j) { j["parts"][1]["volume_mm3"] = "1"; })
+                .summary,
+            "parts[1] has no volume_mm3 within +-1e+18");
+  EXPECT_EQ(contract_of("input", [](nlohmann::json& j) { j["input"]["volume_mm3"] = 1e300; })
+                .summary,
+            "input.volume_mm3 is not a number within +-1e+18");
+
+  const Folder f = write_folder("overflow", box(kLo, kHi), two_boxes(false), {0, 1});
+  const fs::path json_path = fs::path(f.outdir) / "decomposition.json";
+  std::stringstream text;
+  text << std::ifstream(json_path).rdbuf();
+  std::string overflow = text.str();
+  overflow.replace(overflow.find("\"volume_mm3\":") + 14, 0, "1e400, \"was\": ");
+  std::ofstream(json_path) << overflow;
+  EXPECT_NE(item(run(f), "contract").summary.find("number overflow parsing '1e400'"),
+            std::string::npos);
+  // Nesting that overflowed the stack.
+  std::string deep = text.str();
+  deep.insert(deep.rfind('}'), ", \"deep\": " + std::string(100000, '[') + std::string(100000, ']'));
+  std::ofstream(json_path) << deep;
+  EXPECT_NE(item(run(f), "contract").summary.find("deeper than 64 levels"), std::string::npos);
+}
+
 TEST(Check, UnreadableFolderOrBadOptionsThrow) {
   CheckOptions o;
   o.outdir = test::temp_dir("check-empty") + "/absent";

@@ -1,7 +1,9 @@
 // Runs the dhfcast executable as a user would: bad input gets a one-line error, a non-zero exit
 // code and no output folder.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -109,6 +111,27 @@ TEST(Cli, MissingFileIsAnIoError) {
   EXPECT_FALSE(fs::exists(dir + "/out"));
 }
 
+TEST(Cli, InputThatIsNoRegularFileIsAnIoError) {
+  const std::string dir = test::temp_dir("not_a_file");
+  const std::pair<std::string, std::string> cases[] = {{dir + "/nope", "no such file"},
+                                                       {dir, "is a directory"},
+                                                       {"/dev/null", "is not a regular file"}};
+  for (const auto& [input, message] : cases) {
+    const RunResult r = run("decompose " + input + " -o " + dir + "/out");
+    EXPECT_EQ(r.exit_code, 4) << r.err;
+    EXPECT_NE(r.err.find(input + ": " + message), std::string::npos) << r.err;
+  }
+  EXPECT_FALSE(fs::exists(dir + "/out"));
+}
+
+TEST(Cli, NegativeThreadsGetAReadableRange) {
+  const std::string dir = test::temp_dir("threads");
+  write_text(dir + "/cube.obj", cube_obj());
+  const RunResult r = run("decompose " + dir + "/cube.obj -o " + dir + "/out --threads -1");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("--threads: Value -1 not in range 0 to 1024"), std::string::npos) << r.err;
+}
+
 TEST(Cli, BadOptionIsAUsageError) {
   const std::string dir = test::temp_dir("opt");
   write_text(dir + "/cube.obj", cube_obj());
@@ -161,6 +184,54 @@ TEST(Cli, ExistingOutputIsNotOverwrittenWithoutForce) {
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("--force"), std::string::npos) << r.err;
   EXPECT_TRUE(fs::exists(dir + "/out/keep.txt"));
+}
+
+TEST(Cli, OutputThatIsOrHoldsTheInputIsRefusedBeforeAnyWork) {
+  const std::string dir = test::temp_dir("out_is_input");
+  const std::string input = dir + "/in.obj";
+  write_text(input, cube_obj());
+  for (const std::string& out :
+       {input, dir, dir + "/", dir + "/../" + fs::path(dir).filename().string()}) {
+    const RunResult r = run("decompose " + input + " -o " + out + " --force --quiet");
+    EXPECT_EQ(r.exit_code, 4) << out << ": " << r.err;
+    EXPECT_NE(r.err.find("would replace the input"), std::string::npos) << r.err;
+    ASSERT_TRUE(fs::is_regular_file(input));
+  }
+  // A file that is not the input is not replaced by a folder either.
+  write_text(dir + "/notes.txt", "keep");
+  const RunResult r = run("decompose " + input + " -o " + dir + "/notes.txt --force --quiet");
+  EXPECT_EQ(r.exit_code, 4) << r.err;
+  EXPECT_NE(r.err.find("exists and is not a folder"), std::string::npos) << r.err;
+  EXPECT_TRUE(fs::is_regular_file(dir + "/notes.txt"));
+  // A parent folder nothing can be created in (even as root) is found before the work.
+  const RunResult proc = run("decompose " + input + " -o /proc/dhfcast-out --quiet");
+  EXPECT_EQ(proc.exit_code, 4) << proc.err;
+  EXPECT_NE(proc.err.find("cannot write in /proc"), std::string::npos) << proc.err;
+}
+
+TEST(Cli, OutputWithTrailingSlashIsWrittenAndReplacedWholeLeavingNoTemporaryFolder) {
+  const std::string dir = test::temp_dir("slash");
+  write_text(dir + "/cube.obj", cube_obj());
+  const std::string common = " --tets 2000 --directions 64 --restarts 2 --quiet --no-molds";
+  RunResult r = run("decompose " + dir + "/cube.obj -o " + dir + "/out/" + common);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir + "/out/parts/part_000.stl"));
+  // Leftovers of a killed run: removed when their process is gone, kept while it runs.
+  const pid_t dead = fork();
+  if (dead == 0) _exit(0);
+  waitpid(dead, nullptr, 0);
+  fs::create_directories(dir + "/.out.dhfcast-tmp-" + std::to_string(dead) + "/parts");
+  fs::create_directories(dir + "/.out.dhfcast-tmp-1");
+  write_text(dir + "/out/stale.txt", "old");
+  r = run("decompose " + dir + "/cube.obj -o " + dir + "/out/ --force" + common);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir + "/out/parts/part_000.stl"));
+  EXPECT_FALSE(fs::exists(dir + "/out/stale.txt"));
+  std::vector<std::string> names;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir))
+    names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(names, (std::vector<std::string>{".out.dhfcast-tmp-1", "cube.obj", "out"}));
 }
 
 TEST(Cli, CubeGivesOnePartAndTheContract) {
@@ -216,6 +287,69 @@ TEST(Cli, NoMoldsSkipsThemAndMoldsBuildsThemLater) {
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("--sprue-diameter"), std::string::npos) << r.err;
   EXPECT_EQ(run("molds " + dir + "/nowhere --quiet").exit_code, 4);
+}
+
+std::string read_text(const std::string& path) {
+  std::stringstream text;
+  text << std::ifstream(path, std::ios::binary).rdbuf();
+  return text.str();
+}
+
+TEST(Cli, MoldsRefusesABadFolderBeforeAnyWorkAndLeavesItUntouched) {
+  const std::string dir = test::temp_dir("molds_bad");
+  write_text(dir + "/cube.obj", cube_obj());
+  write_text(dir + "/open.obj", cube_obj(1));
+  ASSERT_EQ(run("decompose " + dir + "/cube.obj -o " + dir +
+                "/out --tets 2000 --directions 64 --restarts 2 --quiet --no-molds")
+                .exit_code,
+            0);
+  const std::string json_path = dir + "/out/decomposition.json";
+  const std::string good = read_text(json_path);
+  fs::create_directory_symlink(dir + "/out/parts", dir + "/out/linked");
+  fs::copy_file(dir + "/open.obj", dir + "/out/parts/open.obj");
+  // Each edit of decomposition.json, and what the error names.
+  auto replaced = [&](const std::string& from, const std::string& to) {
+    std::string text = good;
+    return text.replace(text.find(from), from.size(), to);
+  };
+  const std::string mesh = "\"mesh\": \"parts/part_000.stl\"";
+  const std::pair<std::string, std::string> cases[] = {
+      {replaced(mesh, "\"mesh\": \"parts/open.obj\""),
+       "parts[0] mesh parts/open.obj is not a solid: not closed"},
+      {replaced("\"direction\": [", "\"direction\": [1e308, 1e308, 0], \"was\": ["),
+       "parts[0].direction is not a number within +-1e+06"},
+      {replaced(mesh, "\"mesh\": \"" + dir + "/out/parts/part_000.stl\""),
+       "is not relative to the folder"},
+      {replaced(mesh, "\"mesh\": \"parts/../parts/part_000.stl\""), "has a '..' component"},
+      {replaced(mesh, "\"mesh\": \"linked/part_000.stl\""), "goes through the symlink linked"},
+      {replaced("\"parameters\": {", "\"parameters\": 1, \"was\": {"),
+       "parameters is not an object"},
+      {replaced("\"epsilon_mm\": 0.4", "\"epsilon_mm\": \"0.4\""),
+       "parameters.epsilon_mm is not a number"},
+      {replaced("\"epsilon_mm\": 0.4", "\"epsilon_mm\": 1e400"), "number overflow"},
+      {replaced("\"format\"", "\"deep\": " + std::string(100000, '[') +
+                                   std::string(100000, ']') + ", \"format\""),
+       "deeper than 64 levels"}};
+  for (const auto& [text, message] : cases) {
+    write_text(json_path, text);
+    const RunResult r = run("molds " + dir + "/out --quiet");
+    EXPECT_EQ(r.exit_code, 3) << r.err;
+    EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
+    EXPECT_EQ(read_text(json_path), text);
+    EXPECT_FALSE(fs::exists(dir + "/out/molds"));
+  }
+  // A good folder is swapped whole: the part file is the same file, linked, and no temporary
+  // folder is left beside it.
+  write_text(json_path, good);
+  struct stat before {}, after {};
+  ::stat((dir + "/out/parts/part_000.stl").c_str(), &before);
+  ASSERT_EQ(run("molds " + dir + "/out --quiet").exit_code, 0);
+  ::stat((dir + "/out/parts/part_000.stl").c_str(), &after);
+  EXPECT_EQ(before.st_ino, after.st_ino);
+  EXPECT_TRUE(fs::exists(dir + "/out/molds/part_000_up.stl"));
+  EXPECT_TRUE(fs::is_symlink(dir + "/out/linked"));
+  for (const fs::directory_entry& e : fs::directory_iterator(dir))
+    EXPECT_EQ(e.path().filename().string().find(".dhfcast-tmp-"), std::string::npos) << e.path();
 }
 
 TEST(Cli, PartsAreCutFromTheInputUnlessTetSurfaceIsAsked) {

@@ -5,11 +5,13 @@
 #include <gtest/gtest.h>
 
 #include <bit>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <iterator>
@@ -422,6 +424,33 @@ TEST(LoadSolid, NanCoordinateIsReported) {
   expect_invalid(path, "contains a NaN or infinite coordinate at vertex 0");
 }
 
+// Two boxes' triangles in one mesh; `inward` flips the second.
+std::string two_boxes(const std::string& name, const Vec3& lo, const Vec3& hi, bool inward) {
+  TriMesh mesh = test::make_box(Vec3::Zero(), Vec3(30, 30, 30));
+  TriMesh second = test::make_box(lo, hi);
+  if (inward) flip_orientation(second);
+  const auto offset = static_cast<std::int32_t>(mesh.vertices.size());
+  mesh.vertices.insert(mesh.vertices.end(), second.vertices.begin(), second.vertices.end());
+  for (const Tri& t : second.triangles)
+    mesh.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+  const std::string path = write_file(name, "");
+  write_stl(path, mesh);
+  return path;
+}
+
+TEST(LoadSolid, SeveralSolidsAreRefusedACavityIsNot) {
+  expect_invalid(two_boxes("disjoint.stl", Vec3(40, 0, 0), Vec3(50, 10, 10), false),
+                 "has 2 separate shells, 2 of them facing outward (disjoint or nested solids)");
+  expect_invalid(two_boxes("nested.stl", Vec3(10, 10, 10), Vec3(20, 20, 20), false),
+                 "has 2 separate shells, 2 of them facing outward (disjoint or nested solids)");
+  expect_invalid(two_boxes("inside_out.stl", Vec3(40, 0, 0), Vec3(50, 10, 10), true),
+                 "has 2 separate shells: one faces inward but lies outside the outer one");
+  const LoadedSolid hollow =
+      load_solid(two_boxes("hollow.stl", Vec3(10, 10, 10), Vec3(20, 20, 20), true));
+  EXPECT_NEAR(signed_volume(hollow.mesh), 27000.0 - 1000.0, 1e-9);
+  EXPECT_FALSE(hollow.flipped);
+}
+
 TEST(LoadSolid, InvertedBoxIsFlipped) {
   TriMesh inverted = box();
   flip_orientation(inverted);
@@ -489,11 +518,39 @@ TEST(ReadMesh, TruncatedBinaryStl) {
                  "bytes");
 }
 
+TEST(ReadMesh, AsciiStlWithByteOrderMarkOrInCapitals) {
+  expect_welded_box(read_mesh(write_file("bom.stl", "\xEF\xBB\xBF" + ascii_stl(box()))));
+  std::string shouting = ascii_stl(box());
+  for (char& c : shouting) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  expect_welded_box(read_mesh(write_file("shouting.stl", shouting)));
+}
+
+TEST(ReadMesh, NulByteInAsciiStlIsNamedWhereItIs) {
+  std::string text = ascii_stl(box());
+  const std::size_t at = text.find("vertex", text.find("vertex") + 1);  // line 5
+  text.insert(at, 1, '\0');
+  expect_invalid(write_file("nul.stl", text),
+                 "line 5: NUL byte at byte offset " + std::to_string(at) + " of an ASCII STL");
+}
+
 TEST(ReadMesh, EmptyFile) { expect_invalid(write_file("empty.obj", ""), "empty file"); }
 
 TEST(ReadMesh, MissingFileIsAnIoError) {
-  const std::string message = load_error("/nonexistent-dir/x.stl", ErrorCode::Io);
-  EXPECT_EQ(message.rfind("cannot open /nonexistent-dir/x.stl: ", 0), 0u) << message;
+  EXPECT_EQ(load_error("/nonexistent-dir/x.stl", ErrorCode::Io),
+            "/nonexistent-dir/x.stl: no such file");
+}
+
+TEST(ReadMesh, DirectoryAndDeviceAreIoErrorsWhateverTheirName) {
+  const std::string dir = test::temp_dir("dir.stl");
+  EXPECT_EQ(load_error(dir, ErrorCode::Io), dir + ": is a directory");
+  EXPECT_EQ(load_error("/dev/null", ErrorCode::Io), "/dev/null: is not a regular file");
+}
+
+TEST(ReadMesh, FileOverTwoGibIsRefusedUnread) {
+  const std::string path = write_file("sparse.stl", "");
+  std::filesystem::resize_file(path, std::uintmax_t{3} << 30);  // sparse: nothing is written
+  expect_invalid(path, "file of 3072 MiB; dhfcast reads meshes of at most 2 GiB");
+  std::filesystem::remove(path);
 }
 
 TEST(ReadMesh, UnknownExtensionListsTheSupportedOnes) {

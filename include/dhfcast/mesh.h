@@ -38,8 +38,9 @@ struct MeshDiagnostics {
 // Reads a triangle soup from STL (binary or ASCII), OBJ, PLY (ASCII or binary) or OFF, chosen by
 // the file's extension (case-insensitive). Polygons are fan-triangulated. Coincident vertices
 // (identical coordinates) are welded and unused vertices dropped.
-// Throws Error{Io} when the file cannot be opened, Error{InvalidInput} with the file name and a
-// location (line number, byte offset, triangle index) when it is malformed or truncated.
+// Throws Error{Io} when the file does not exist, is not a regular file or cannot be opened,
+// Error{InvalidInput} when it is larger than 2 GiB, or with the file name and a location (line
+// number, byte offset, triangle index) when it is malformed or truncated.
 TriMesh read_mesh(const std::string& path);
 
 // Checks that `mesh` bounds a solid: closed, 2-manifold (edges and vertices), consistently
@@ -47,6 +48,11 @@ TriMesh read_mesh(const std::string& path);
 // Orientation sign is not a problem here: a negative volume is reported in volume_mm3 only.
 // Pre: vertices are welded (as read_mesh() returns them).
 MeshDiagnostics validate_mesh(const TriMesh& mesh);
+
+// What keeps `mesh` from being a part of a decomposition, or "": as validate_mesh(), but a part
+// may touch itself along edges and at vertices (its welded mesh is then non-manifold there) as
+// long as the directed uses of every edge cancel.
+std::string part_solid_problem(const TriMesh& mesh);
 
 // Pairs of triangles of `mesh` (ascending indices, at most max_pairs pairs) that intersect other
 // than along the vertices or edge they share; exact predicates. Pre: `mesh` is a surface mesh
@@ -62,7 +68,9 @@ struct LoadedSolid {
 
 // read_mesh() + scaling + validate_mesh(); flips a globally inverted mesh (and says so in the
 // result). Throws Error{InvalidInput} with "PATH: <first problem>" when the mesh is not a valid
-// solid, or when it is absurdly scaled (bounding-box diagonal outside [0.1 mm, 100 m]).
+// solid, when it is several solids (more than one shell facing outward, or an inward one outside
+// the outer shell; inward shells inside it are cavities, and fine), or when it is absurdly scaled
+// (bounding-box diagonal outside [0.1 mm, 100 m]).
 LoadedSolid load_solid(const std::string& path, const LoadOptions& opts = {});
 
 // Writes a binary STL (float32, per-triangle normals). Throws Error{Io}.

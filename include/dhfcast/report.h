@@ -27,22 +27,27 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                                bool include_timings = true);
 
 // Writes decomposition.json and parts/part_NNN.stl into `outdir`: everything goes to a
-// temporary folder beside it, renamed to `outdir` at the end, so a failure leaves no
-// half-written output. An existing `outdir` is replaced only when `replace` is true.
+// temporary folder beside it (".OUTNAME.dhfcast-tmp-PID"; a dead process's are removed), swapped
+// with `outdir` in one rename at the end, so a failure or a kill leaves no half-written output.
+// An existing `outdir` is replaced only when `replace` is true.
 // Throws Error{Io}.
 void write_output(const std::string& outdir, const std::string& json, const Decomposition& d,
                   bool replace);
 
 // Builds the molds of an existing output folder again with `opts` (epsilon_mm is taken from its
 // decomposition.json): replaces OUTDIR/molds/ and the molds entries, parameters.molds and
-// timings_s.molds of decomposition.json. The new files are written beside the old ones and
-// swapped in at the end. Returns the molds (a part whose mold failed has Mold::error).
+// timings_s.molds of decomposition.json. Every part mesh, direction and number read is checked
+// first. The folder's new state is built beside it (".OUTNAME.dhfcast-tmp-PID") and swapped in
+// with one rename, so the folder is old or new, whole, at every instant. Returns the molds (a part
+// whose mold failed has Mold::error).
 // Throws Error{Io} when the folder cannot be read or written, Error{InvalidInput} when it is not
-// a dhfcast decomposition, Error{InvalidOptions} for bad options.
+// a dhfcast decomposition or lists a file outside it (see folder_file()), a part that is not a
+// solid or a number out of range, Error{InvalidOptions} for bad options.
 std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts);
 
-// Throws Error{Io} when `outdir` cannot be written later: it exists and `replace` is false, or
-// its parent folder does not exist. Lets the CLI fail before the long computation.
-void check_output_location(const std::string& outdir, bool replace);
+// Throws Error{Io} when `outdir` cannot be written later: it is or holds `input` (when given),
+// it exists and is not a folder, it exists and `replace` is false, or its parent folder does not
+// exist or cannot be written. Lets the CLI fail before the long computation.
+void check_output_location(const std::string& outdir, bool replace, const std::string& input = "");
 
 }  // namespace dhfcast

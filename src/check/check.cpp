@@ -19,6 +19,7 @@
 
 #include "check_internal.h"
 #include "dhfcast/error.h"
+#include "dhfcast/folder.h"
 #include "dhfcast/mesh.h"
 
 namespace dhfcast {
@@ -105,29 +106,36 @@ struct FolderContents {
   std::vector<std::string> problems;  // contract violations, in the order found
 };
 
+// A number within +-limit, or nullopt.
+std::optional<double> number(const json& j, double limit) {
+  if (!j.is_number() || !(std::abs(j.get<double>()) <= limit)) return std::nullopt;
+  return j.get<double>();
+}
+
+// A point or direction [x, y, z] within kMaxFolderCoordinateMm, or nullopt.
 std::optional<Vec3> vec3(const json& j) {
   if (!j.is_array() || j.size() != 3) return std::nullopt;
   Vec3 v;
   for (int k = 0; k < 3; ++k) {
-    if (!j[k].is_number()) return std::nullopt;
-    v[k] = j[k].get<double>();
+    const std::optional<double> x = number(j[k], kMaxFolderCoordinateMm);
+    if (!x) return std::nullopt;
+    v[k] = *x;
   }
-  if (!v.allFinite()) return std::nullopt;
   return v;
 }
 
-// Reads a half's "up_to_model" / "down_to_model": three rows [r0, r1, r2, t] of finite numbers
-// whose 3x3 part is a rotation. Returns what is wrong, or "".
+// Reads a half's "up_to_model" / "down_to_model": three rows [r0, r1, r2, t] of numbers within
+// kMaxFolderCoordinateMm whose 3x3 part is a rotation. Returns what is wrong, or "".
 std::string read_motion(const json& j, Motion& m) {
   if (!j.is_array() || j.size() != 3) return "is not 3 rows [r, r, r, t]";
   for (int r = 0; r < 3; ++r) {
     if (!j[r].is_array() || j[r].size() != 4) return "is not 3 rows [r, r, r, t]";
     for (int c = 0; c < 4; ++c) {
-      if (!j[r][c].is_number()) return "has an entry that is not a number";
-      m(r, c) = j[r][c].get<double>();
+      const std::optional<double> x = number(j[r][c], kMaxFolderCoordinateMm);
+      if (!x) return format("has an entry that is not a number within +-%g", kMaxFolderCoordinateMm);
+      m(r, c) = *x;
     }
   }
-  if (!m.allFinite()) return "has an entry that is not finite";
   const Eigen::Matrix3d rotation = m.leftCols<3>();
   const double off =
       (rotation.transpose() * rotation - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
@@ -149,10 +157,14 @@ std::string read_file(const fs::path& path) {
 FolderContents read_contents(const fs::path& outdir, const std::string& text) {
   FolderContents c;
   auto problem = [&](const std::string& what) { c.problems.push_back(what); };
+  if (const std::string deep = json_nesting_problem(text); !deep.empty()) {
+    problem("decomposition.json " + deep);
+    return c;
+  }
   json j;
   try {
     j = json::parse(text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // also numbers no double holds (1e400)
     problem(std::string("decomposition.json is not valid JSON: ") + e.what());
     return c;
   }
@@ -168,17 +180,35 @@ FolderContents read_contents(const fs::path& outdir, const std::string& text) {
 
   if (j.contains("input") && j["input"].is_object()) {
     const json& in = j["input"];
-    if (in.contains("volume_mm3") && in["volume_mm3"].is_number())
-      c.input_volume_mm3 = in["volume_mm3"].get<double>();
-    if (in.contains("bbox_mm") && in["bbox_mm"].is_array() && in["bbox_mm"].size() == 2) {
-      const std::optional<Vec3> lo = vec3(in["bbox_mm"][0]), hi = vec3(in["bbox_mm"][1]);
-      if (lo && hi && (lo->array() <= hi->array()).all()) c.input_bbox = Box3{*lo, *hi};
+    if (in.contains("volume_mm3")) {
+      if (const std::optional<double> v = number(in["volume_mm3"], kMaxFolderVolumeMm3))
+        c.input_volume_mm3 = *v;
+      else
+        problem(format("input.volume_mm3 is not a number within +-%g", kMaxFolderVolumeMm3));
+    }
+    if (in.contains("bbox_mm")) {
+      const json& box = in["bbox_mm"];
+      const std::optional<Vec3> lo = box.is_array() && box.size() == 2 ? vec3(box[0]) : std::nullopt,
+                                hi = lo ? vec3(box[1]) : std::nullopt;
+      if (lo && hi && (lo->array() <= hi->array()).all())
+        c.input_bbox = Box3{*lo, *hi};
+      else
+        problem(format("input.bbox_mm is not [[x, y, z], [x, y, z]] within +-%g, min <= max",
+                       kMaxFolderCoordinateMm));
     }
   }
 
-  auto file_exists = [&](const std::string& file, const std::string& what) {
+  // A file named in decomposition.json: "" when its name may lead out of the folder, so it is
+  // never opened.
+  auto file_in_folder = [&](const std::string& file, const std::string& what) -> std::string {
+    fs::path path;
+    if (const std::string wrong = folder_file(outdir, file, path); !wrong.empty()) {
+      problem(what + " " + wrong);
+      return {};
+    }
     std::error_code ec;
-    if (!fs::is_regular_file(outdir / file, ec)) problem(what + " " + file + " does not exist");
+    if (!fs::is_regular_file(path, ec)) problem(what + " " + file + " does not exist");
+    return file;
   };
   if (!j.contains("parts") || !j["parts"].is_array() || j["parts"].empty()) {
     problem("no parts array");
@@ -201,8 +231,7 @@ FolderContents read_contents(const fs::path& outdir, const std::string& text) {
     else
       problem(where + " has no integer id >= 0");
     if (jp.contains("mesh") && jp["mesh"].is_string()) {
-      p.mesh = jp["mesh"].get<std::string>();
-      file_exists(p.mesh, where + " mesh");
+      p.mesh = file_in_folder(jp["mesh"].get<std::string>(), where + " mesh");
     } else {
       problem(where + " has no mesh file name");
     }
@@ -220,10 +249,11 @@ FolderContents read_contents(const fs::path& outdir, const std::string& text) {
         problem(where + format(" removal_direction has length %.9g, not 1", p.removal->norm()));
       if (p.removal && p.removal->norm() == 0.0) p.removal.reset();
     }
-    if (jp.contains("volume_mm3") && jp["volume_mm3"].is_number())
-      p.volume_mm3 = jp["volume_mm3"].get<double>();
+    if (const std::optional<double> v =
+            jp.contains("volume_mm3") ? number(jp["volume_mm3"], kMaxFolderVolumeMm3) : std::nullopt)
+      p.volume_mm3 = *v;
     else
-      problem(where + " has no volume_mm3");
+      problem(where + format(" has no volume_mm3 within +-%g", kMaxFolderVolumeMm3));
     if (jp.contains("molds")) {
       const json& m = jp["molds"];
       if (m.is_object() && m.contains("error") && m["error"].is_string()) {
@@ -231,10 +261,9 @@ FolderContents read_contents(const fs::path& outdir, const std::string& text) {
         if (p.mold_error.empty()) problem(where + " molds error is empty");
       } else if (m.is_object() && m.contains("up") && m["up"].is_string() &&
                  m.contains("down") && m["down"].is_string()) {
-        p.mold_up = m["up"].get<std::string>();
-        p.mold_down = m["down"].get<std::string>();
-        file_exists(p.mold_up, where + " mold");
-        file_exists(p.mold_down, where + " mold");
+        p.mold_up = file_in_folder(m["up"].get<std::string>(), where + " mold");
+        p.mold_down = file_in_folder(m["down"].get<std::string>(), where + " mold");
+        if (p.mold_up.empty() || p.mold_down.empty()) p.mold_up = p.mold_down = {};
         // Halves are written in their print frames; a folder without the motions (written
         // before they were) has them in the model's frame.
         for (auto [key, motion] : {std::pair{"up_to_model", &p.up_to_model},
@@ -256,12 +285,14 @@ FolderContents read_contents(const fs::path& outdir, const std::string& text) {
                                                   ? vec3(c["mouth"]) : std::nullopt;
             const std::optional<Vec3> exit = c.is_object() && c.contains("exit")
                                                  ? vec3(c["exit"]) : std::nullopt;
-            if (!mouth || !exit || !c.contains("diameter_mm") ||
-                !c["diameter_mm"].is_number() || !(c["diameter_mm"].get<double>() > 0)) {
+            const double diameter =
+                c.is_object() && c.contains("diameter_mm")
+                    ? number(c["diameter_mm"], kMaxFolderCoordinateMm).value_or(0) : 0;
+            if (!mouth || !exit || !(diameter > 0)) {
               problem(where + " molds." + kind + " has an entry without mouth, exit and diameter_mm > 0");
               continue;
             }
-            p.channels.push_back({*mouth, *exit, c["diameter_mm"].get<double>()});
+            p.channels.push_back({*mouth, *exit, diameter});
             (std::string(kind) == "sprues" ? p.sprues : p.vents)++;
           }
         }
@@ -300,15 +331,14 @@ FolderContents read_contents(const fs::path& outdir, const std::string& text) {
         if (!jv.is_object() || !jv.contains("part") || !jv["part"].is_number_integer() ||
             !ids.contains(jv["part"].get<std::int32_t>()) || !jv.contains("mesh") ||
             !jv["mesh"].is_string() || !jv.contains("volume_mm3") ||
-            !jv["volume_mm3"].is_number() || !(jv["volume_mm3"].get<double>() > 0)) {
+            !(number(jv["volume_mm3"], kMaxFolderVolumeMm3).value_or(0) > 0)) {
           problem(where + " is not {\"part\": id, \"mesh\": file, \"volume_mm3\": > 0}");
           continue;
         }
         v.part = jv["part"].get<std::int32_t>();
-        v.mesh = jv["mesh"].get<std::string>();
+        v.mesh = file_in_folder(jv["mesh"].get<std::string>(), where + " mesh");
         v.volume_mm3 = jv["volume_mm3"].get<double>();
-        file_exists(v.mesh, where + " mesh");
-        c.voids.push_back(v);
+        if (!v.mesh.empty()) c.voids.push_back(v);
       }
     }
   }
@@ -374,32 +404,6 @@ struct LoadedMesh {
   bool volume_ok = true;      // within the tolerance
 };
 
-// Directed uses of each edge must cancel: closed and consistently oriented, even where the part
-// touches itself along an edge (four triangles, two each way).
-std::int64_t unbalanced_edges(const TriMesh& mesh) {
-  std::map<std::pair<std::int32_t, std::int32_t>, int> balance;
-  for (const Tri& t : mesh.triangles)
-    for (int k = 0; k < 3; ++k) {
-      const std::int32_t a = t[k], b = t[(k + 1) % 3];
-      if (a != b) balance[{std::min(a, b), std::max(a, b)}] += a < b ? 1 : -1;
-    }
-  return std::ranges::count_if(balance, [](const auto& e) { return e.second != 0; });
-}
-
-// A part may touch itself at edges and vertices (its welded mesh is then non-manifold there);
-// anything else validate_mesh() finds is a problem.
-std::string part_problem(const TriMesh& mesh) {
-  const MeshDiagnostics d = validate_mesh(mesh);
-  if (d.nonfinite_vertices > 0 || unbalanced_edges(mesh) > 0) return d.first_problem;
-  if (d.degenerate_triangles > 0)
-    return format("%lld degenerate triangle%s (zero area or repeated vertex)",
-                  static_cast<long long>(d.degenerate_triangles),
-                  d.degenerate_triangles == 1 ? "" : "s");
-  if (d.intersecting_pairs > 0) return d.first_problem;
-  if (d.volume_mm3 <= 0) return format("inward oriented or empty (volume %.6g mm3)", d.volume_mm3);
-  return {};
-}
-
 std::string mold_problem(const TriMesh& mesh) {
   const MeshDiagnostics d = validate_mesh(mesh);
   if (!d.ok()) return d.first_problem;
@@ -455,8 +459,15 @@ std::vector<LoadedMesh> load_meshes(const fs::path& outdir, const FolderContents
       m.problem = e.what();
       return;
     }
+    // Far-off coordinates (an STL float reaches 3e38) would overflow the checks' grids.
+    for (const Vec3& v : m.mesh->vertices)
+      if (v.allFinite() && v.cwiseAbs().maxCoeff() > kMaxFolderCoordinateMm) {
+        m.problem = format("a vertex lies beyond +-%g mm", kMaxFolderCoordinateMm);
+        m.mesh.reset();
+        return;
+      }
     const bool solid = m.is_part() || m.kind == LoadedMesh::Kind::Void;
-    m.problem = solid ? part_problem(*m.mesh) : mold_problem(*m.mesh);
+    m.problem = solid ? part_solid_problem(*m.mesh) : mold_problem(*m.mesh);
     if (m.to_model)
       for (Vec3& v : m.mesh->vertices) v = m.to_model->leftCols<3>() * v + m.to_model->col(3);
     const double json_volume =

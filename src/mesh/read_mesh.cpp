@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <memory>
 #include <numeric>
 
@@ -97,6 +98,28 @@ bool TokenStream::next(std::string_view& token) {
 
 namespace {
 
+// Larger files are refused before reading: no mesh dhfcast can decompose comes near it, and a
+// sparse or endless file must not exhaust memory.
+constexpr std::uintmax_t kMaxFileBytes = std::uintmax_t{2} << 30;
+
+// Refuses what is not a regular file of sensible size before its extension or content matters.
+void check_input_file(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (status.type() == fs::file_type::not_found)
+    throw Error(ErrorCode::Io, path + ": no such file");
+  if (ec) throw Error(ErrorCode::Io, "cannot open " + path + ": " + ec.message());
+  if (fs::is_directory(status)) throw Error(ErrorCode::Io, path + ": is a directory");
+  if (!fs::is_regular_file(status)) throw Error(ErrorCode::Io, path + ": is not a regular file");
+  const std::uintmax_t size = fs::file_size(path, ec);
+  if (ec) throw Error(ErrorCode::Io, "cannot open " + path + ": " + ec.message());
+  if (size > kMaxFileBytes)
+    detail::fail_input(path, "",
+                       "file of " + std::to_string(size >> 20) +
+                           " MiB; dhfcast reads meshes of at most 2 GiB");
+}
+
 std::string read_file(const std::string& path) {
   const std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "rb"),
                                                              &std::fclose);
@@ -168,6 +191,7 @@ TriMesh weld(detail::Soup soup) {
 }  // namespace
 
 TriMesh read_mesh(const std::string& path) {
+  check_input_file(path);
   const std::string ext = lowercase_extension(path);
   using Parser = detail::Soup (*)(const std::string&, std::string_view);
   Parser parser = nullptr;

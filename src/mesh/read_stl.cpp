@@ -1,5 +1,7 @@
 // STL parser, binary and ASCII. STL stores three vertices per facet; welding happens later.
+#include <algorithm>
 #include <bit>
+#include <cctype>
 #include <cstring>
 #include <limits>
 #include <string>
@@ -56,8 +58,12 @@ Soup parse_ascii_stl(const std::string& path, std::string_view data) {
   std::int64_t facet_line = 0;
   while (lines.next(line)) {
     Tokens tokens(line);
-    std::string_view keyword;
-    if (!tokens.next(keyword)) continue;
+    std::string_view token;
+    if (!tokens.next(token)) continue;
+    // Some writers shout: SOLID, FACET NORMAL, VERTEX.
+    std::string lowercase(token);
+    for (char& c : lowercase) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    const std::string_view keyword = lowercase;
     const std::string where = line_location(lines.line_number());
     if (keyword == "solid" || keyword == "endsolid") {
       if (in_facet) fail_input(path, where, "'" + std::string(keyword) + "' inside a facet");
@@ -88,7 +94,7 @@ Soup parse_ascii_stl(const std::string& path, std::string_view data) {
       add_polygon(soup, facet);
       in_facet = false;
     } else {
-      fail_input(path, where, "unexpected " + quoted(keyword) + " in ASCII STL");
+      fail_input(path, where, "unexpected " + quoted(token) + " in ASCII STL");
     }
   }
   if (in_facet)
@@ -97,13 +103,28 @@ Soup parse_ascii_stl(const std::string& path, std::string_view data) {
   return soup;
 }
 
-// ASCII STL starts with "solid" and never holds a NUL byte; binary headers and counts often do,
-// even when the header starts with "solid".
+constexpr std::string_view kUtf8Bom = "\xEF\xBB\xBF";
+
+// ASCII STL starts with "solid" (any case, after a byte order mark and blanks) and has no NUL
+// byte in that first line; a binary header may start with "solid" too, but is followed by the
+// NUL bytes of the triangle count before any line break.
 bool looks_like_ascii(std::string_view data) {
-  constexpr std::size_t kSniffBytes = 4096;
+  if (data.starts_with(kUtf8Bom)) data.remove_prefix(kUtf8Bom.size());
   const std::size_t start = data.find_first_not_of(" \t\r\n");
-  return start != std::string_view::npos && data.substr(start, 5) == "solid" &&
-         data.substr(0, kSniffBytes).find('\0') == std::string_view::npos;
+  if (start == std::string_view::npos || data.size() - start < 5) return false;
+  for (std::size_t i = 0; i < 5; ++i)
+    if (std::tolower(static_cast<unsigned char>(data[start + i])) != "solid"[i]) return false;
+  const std::string_view first_line = data.substr(start, data.find('\n', start) - start);
+  return first_line.find('\0') == std::string_view::npos;
+}
+
+// A text file holds no NUL byte: say where it is rather than what the parser makes of it.
+void check_no_nul(const std::string& path, std::string_view data) {
+  const std::size_t nul = data.find('\0');
+  if (nul == std::string_view::npos) return;
+  const auto line = std::count(data.begin(), data.begin() + nul, '\n') + 1;
+  fail_input(path, line_location(line),
+             "NUL byte at byte offset " + std::to_string(nul) + " of an ASCII STL");
 }
 
 }  // namespace
@@ -126,6 +147,8 @@ Soup parse_stl(const std::string& path, std::string_view data) {
                "truncated binary STL: the file has " + std::to_string(size) +
                    " bytes, less than the 84-byte header");
   }
+  check_no_nul(path, data);
+  if (data.starts_with(kUtf8Bom)) data.remove_prefix(kUtf8Bom.size());
   return parse_ascii_stl(path, data);
 }
 

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <numeric>
 #include <string>
 #include <vector>
@@ -211,6 +212,37 @@ MeshDiagnostics validate_mesh(const TriMesh& mesh) {
       d.first_problem = "zero volume";
   }
   return d;
+}
+
+namespace {
+
+// Directed uses of each edge must cancel: closed and consistently oriented, even where the part
+// touches itself along an edge (four triangles, two each way).
+std::int64_t unbalanced_edges(const TriMesh& mesh) {
+  std::map<std::pair<std::int32_t, std::int32_t>, int> balance;
+  for (const Tri& t : mesh.triangles)
+    for (int k = 0; k < 3; ++k) {
+      const std::int32_t a = t[k], b = t[(k + 1) % 3];
+      if (a != b) balance[{std::min(a, b), std::max(a, b)}] += a < b ? 1 : -1;
+    }
+  return std::ranges::count_if(balance, [](const auto& e) { return e.second != 0; });
+}
+
+}  // namespace
+
+std::string part_solid_problem(const TriMesh& mesh) {
+  const MeshDiagnostics d = validate_mesh(mesh);
+  if (d.nonfinite_vertices > 0 || unbalanced_edges(mesh) > 0) return d.first_problem;
+  if (d.degenerate_triangles > 0)
+    return count_of(d.degenerate_triangles, "degenerate triangle") +
+           " (zero area or repeated vertex)";
+  if (d.intersecting_pairs > 0) return d.first_problem;
+  if (d.volume_mm3 <= 0) {
+    char text[64];
+    std::snprintf(text, sizeof text, "inward oriented or empty (volume %.6g mm3)", d.volume_mm3);
+    return text;
+  }
+  return {};
 }
 
 }  // namespace dhfcast

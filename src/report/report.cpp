@@ -1,15 +1,23 @@
 #include "dhfcast/report.h"
 
+#include <fcntl.h>
+#include <signal.h>
+#include <stdio.h>  // renameat2, RENAME_EXCHANGE
 #include <unistd.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <system_error>
 
 #include "dhfcast/error.h"
+#include "dhfcast/folder.h"
 #include "dhfcast/mesh.h"
 
 namespace fs = std::filesystem;
@@ -272,25 +280,110 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
   return j.dump(2) + "\n";
 }
 
-void check_output_location(const std::string& outdir, bool replace) {
-  const fs::path out = fs::absolute(outdir);
+namespace {
+
+// The folder `outdir` names, absolute, without a trailing separator ("out/" is "out").
+fs::path folder_path(const std::string& outdir) {
+  fs::path out = fs::absolute(outdir).lexically_normal();
+  return out.has_filename() ? out : out.parent_path();
+}
+
+// Where a folder's replacement is built, beside it so one rename swaps it in. The pid tells a
+// dead writer's leftovers (see remove_stale_temps()) from a running one's.
+constexpr const char* kTempTag = ".dhfcast-tmp-";
+
+// ".OUTNAME.dhfcast-tmp-" (appended to, not prepended: GCC 12 warns about "." + name).
+std::string temp_prefix(const fs::path& out) {
+  std::string prefix = ".";
+  prefix += out.filename().string();
+  return prefix += kTempTag;
+}
+
+fs::path temp_beside(const fs::path& out) {
+  return out.parent_path() / (temp_prefix(out) + std::to_string(::getpid()));
+}
+
+// Removes the temporary folders beside `out` of processes that no longer run (killed while
+// writing).
+void remove_stale_temps(const fs::path& out) {
+  const std::string prefix = temp_prefix(out);
   std::error_code ec;
-  if (fs::exists(out, ec) && !replace)
+  for (const fs::directory_entry& e : fs::directory_iterator(out.parent_path(), ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind(prefix, 0) != 0) continue;
+    const std::string pid = name.substr(prefix.size());
+    if (pid.empty() || pid.size() > 9 || pid.find_first_not_of("0123456789") != std::string::npos)
+      continue;
+    if (::kill(std::stoi(pid), 0) != 0 && errno == ESRCH) fs::remove_all(e.path(), ec);
+  }
+}
+
+// Puts the folder `tmp` at `out`, replacing `out` if it exists. With RENAME_EXCHANGE one rename
+// swaps them, so `out` is whole, old or new, at every instant; the old one, now at `tmp`, is
+// removed after. File systems without it get two renames, the old folder kept until the second.
+void swap_in(const fs::path& tmp, const fs::path& out, const std::string& name) {
+  std::error_code ec;
+  if (!fs::exists(fs::symlink_status(out, ec))) {
+    fs::rename(tmp, out, ec);
+    if (ec) io_error("cannot create " + name, ec);
+    return;
+  }
+  if (::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, out.c_str(), RENAME_EXCHANGE) == 0) {
+    fs::remove_all(tmp, ec);
+    return;
+  }
+  if (errno != EINVAL && errno != ENOSYS)
+    io_error("cannot replace " + name, std::error_code(errno, std::generic_category()));
+  const fs::path old = tmp.string() + "-old";
+  fs::rename(out, old, ec);
+  if (ec) io_error("cannot replace " + name, ec);
+  fs::rename(tmp, out, ec);
+  if (ec) {
+    fs::rename(old, out);
+    io_error("cannot create " + name, ec);
+  }
+  fs::remove_all(old, ec);
+}
+
+// True when `inner` is `outer` or lies inside it (both absolute).
+bool is_within(const fs::path& inner, const fs::path& outer) {
+  std::error_code ec;
+  const fs::path a = fs::weakly_canonical(inner, ec), b = fs::weakly_canonical(outer, ec);
+  const auto [end_b, end_a] = std::mismatch(b.begin(), b.end(), a.begin(), a.end());
+  return end_b == b.end();
+}
+
+}  // namespace
+
+void check_output_location(const std::string& outdir, bool replace, const std::string& input) {
+  const fs::path out = folder_path(outdir);
+  std::error_code ec;
+  if (!input.empty() && is_within(fs::absolute(input), out))
+    throw Error(ErrorCode::Io, outdir + " would replace the input " + input +
+                                   "; choose an output folder that does not hold it");
+  const fs::file_status status = fs::symlink_status(out, ec);
+  if (fs::exists(status) && !fs::is_directory(fs::status(out, ec)))
+    throw Error(ErrorCode::Io, outdir + " exists and is not a folder");
+  if (fs::exists(status) && !replace)
     throw Error(ErrorCode::Io, outdir + " already exists; use --force to replace it");
   if (!fs::is_directory(out.parent_path(), ec))
     throw Error(ErrorCode::Io, "cannot create " + outdir + ": folder " +
                                    out.parent_path().string() + " does not exist");
+  // The folder is built beside `out`: find out now, not after the work, if that is allowed.
+  const fs::path probe = temp_beside(out);
+  fs::remove_all(probe, ec);
+  if (!fs::create_directory(probe, ec))
+    io_error("cannot create " + outdir + ": cannot write in " + out.parent_path().string(), ec);
+  fs::remove(probe, ec);
 }
 
 void write_output(const std::string& outdir, const std::string& json, const Decomposition& d,
                   bool replace) {
   check_output_location(outdir, replace);
-  const fs::path out = fs::absolute(outdir).lexically_normal();
-  const fs::path parent = out.parent_path();
-  const std::string stem = out.filename().string();
-  const fs::path tmp = parent / ("." + stem + ".tmp-" + std::to_string(::getpid()));
+  const fs::path out = folder_path(outdir);
+  remove_stale_temps(out);
+  const fs::path tmp = temp_beside(out);
   std::error_code ec;
-  fs::remove_all(tmp, ec);
   try {
     fs::create_directories(tmp / "parts", ec);
     if (ec) io_error("cannot create " + tmp.string(), ec);
@@ -302,20 +395,7 @@ void write_output(const std::string& outdir, const std::string& json, const Deco
     f << json;
     f.close();
     if (!f) throw Error(ErrorCode::Io, "cannot write " + (tmp / "decomposition.json").string());
-
-    // Swap in the new folder; the old one (if replacing) is removed only after the rename.
-    const fs::path old = parent / ("." + stem + ".old-" + std::to_string(::getpid()));
-    const bool had_old = fs::exists(out);
-    if (had_old) {
-      fs::rename(out, old, ec);
-      if (ec) io_error("cannot replace " + outdir, ec);
-    }
-    fs::rename(tmp, out, ec);
-    if (ec) {
-      if (had_old) fs::rename(old, out);
-      io_error("cannot create " + outdir, ec);
-    }
-    if (had_old) fs::remove_all(old, ec);
+    swap_in(tmp, out, outdir);
   } catch (...) {
     fs::remove_all(tmp, ec);
     throw;
@@ -326,44 +406,107 @@ void write_output(const std::string& outdir, const std::string& json, const Deco
 
 namespace dhfcast {
 
-std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts) {
-  opts.validate();
-  const fs::path out = fs::absolute(outdir).lexically_normal();
-  const fs::path json_path = out / "decomposition.json";
-  std::ifstream in(json_path, std::ios::binary);
-  if (!in) throw Error(ErrorCode::Io, "cannot read " + json_path.string());
-  ordered_json j;
-  try {
-    j = ordered_json::parse(in);
-  } catch (const std::exception& e) {
-    throw Error(ErrorCode::InvalidInput, json_path.string() + ": not valid JSON");
-  }
-  if (!j.is_object() || j.value("format", "") != "dhfcast-decomposition" ||
-      !j.contains("parts") || !j["parts"].is_array())
-    throw Error(ErrorCode::InvalidInput,
-                json_path.string() + ": not a dhfcast decomposition (format, parts)");
-  if (j["parameters"].is_object() && j["parameters"].contains("epsilon_mm"))
-    opts.epsilon_mm = j["parameters"]["epsilon_mm"].get<double>();
+namespace {
 
+// Fills the new folder `to` with the entries of `from` but those named in `skip`: files are
+// hard-linked (copied where the file system cannot link), symlinks copied as links.
+void link_folder(const fs::path& from, const fs::path& to,
+                 std::initializer_list<const char*> skip) {
+  std::error_code ec;
+  for (const fs::directory_entry& e : fs::directory_iterator(from, ec)) {
+    const fs::path name = e.path().filename();
+    if (std::ranges::any_of(skip, [&](const char* s) { return name == s; })) continue;
+    constexpr auto kTree = fs::copy_options::recursive | fs::copy_options::copy_symlinks;
+    fs::copy(e.path(), to / name, kTree | fs::copy_options::create_hard_links, ec);
+    if (ec) {
+      fs::remove_all(to / name, ec);
+      fs::copy(e.path(), to / name, kTree, ec);
+    }
+    if (ec) io_error("cannot copy " + e.path().string(), ec);
+  }
+  if (ec) io_error("cannot read " + from.string(), ec);
+}
+
+// A number of decomposition.json within +-limit; else a bad-folder error naming `field`.
+double folder_number(const ordered_json& j, double limit, const std::string& field,
+                     const std::string& json_name) {
+  if (!j.is_number() || !(std::abs(j.get<double>()) <= limit)) {
+    char range[32];
+    std::snprintf(range, sizeof range, "%g", limit);
+    throw Error(ErrorCode::InvalidInput,
+                json_name + ": " + field + " is not a number within +-" + range);
+  }
+  return j.get<double>();
+}
+
+// The parts of the folder `out` as its decomposition.json lists them, each mesh read and checked
+// to be a solid. Throws Error{InvalidInput} naming what is wrong before anything is built.
+std::vector<Part> read_folder_parts(const fs::path& out, const ordered_json& j,
+                                    const std::string& json_name) {
+  auto bad = [&](const std::string& what) {
+    throw Error(ErrorCode::InvalidInput, json_name + ": " + what);
+  };
   std::vector<Part> parts;
   for (const auto& jp : j["parts"]) {
+    const std::string where = "parts[" + std::to_string(parts.size()) + "]";
+    if (!jp.is_object() || !jp.contains("id") || !jp["id"].is_number_integer() ||
+        jp["id"] != parts.size())
+      bad(where + " has no id " + std::to_string(parts.size()) + " (ids are 0..n-1)");
+    if (!jp.contains("mesh") || !jp["mesh"].is_string()) bad(where + " has no mesh file name");
+    const ordered_json& d = jp.contains("direction") ? jp["direction"] : ordered_json();
+    if (!d.is_array() || d.size() != 3) bad(where + " has no direction [x, y, z]");
     Part p;
-    try {
-      p.id = jp.at("id").get<std::int32_t>();
-      const auto& d = jp.at("direction");
-      p.direction = Vec3(d.at(0).get<double>(), d.at(1).get<double>(), d.at(2).get<double>());
-      p.mesh = read_mesh((out / jp.at("mesh").get<std::string>()).string());
-    } catch (const nlohmann::json::exception&) {
-      throw Error(ErrorCode::InvalidInput,
-                  json_path.string() + ": a part lacks its id, direction or mesh");
-    }
-    if (p.id != static_cast<std::int32_t>(parts.size()) || !(p.direction.norm() > 0))
-      throw Error(ErrorCode::InvalidInput,
-                  json_path.string() + ": part ids are not 0..n-1 or a direction is zero");
+    p.id = static_cast<std::int32_t>(parts.size());
+    for (int k = 0; k < 3; ++k)
+      p.direction[k] = folder_number(d[k], kMaxFolderCoordinateMm, where + ".direction", json_name);
+    if (!(p.direction.norm() > 0)) bad(where + ".direction is zero");
     p.direction.normalize();
+    fs::path path;
+    const std::string name = jp["mesh"].get<std::string>();
+    if (const std::string wrong = folder_file(out, name, path); !wrong.empty())
+      bad(where + " mesh " + wrong);
+    p.mesh = read_mesh(path.string());
+    if (const std::string problem = part_solid_problem(p.mesh); !problem.empty())
+      bad(where + " mesh " + name + " is not a solid: " + problem);
     p.volume_mm3 = signed_volume(p.mesh);
     parts.push_back(std::move(p));
   }
+  return parts;
+}
+
+}  // namespace
+
+std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts) {
+  opts.validate();
+  std::error_code ec;
+  // The real folder, so a symlink to it is not what gets swapped.
+  const fs::path out = fs::weakly_canonical(folder_path(outdir), ec);
+  const fs::path json_path = out / "decomposition.json";
+  const std::string json_name = json_path.string();
+  std::ifstream in(json_path, std::ios::binary);
+  if (!in) throw Error(ErrorCode::Io, "cannot read " + json_name);
+  const std::string text(std::istreambuf_iterator<char>(in), {});
+  auto bad = [&](const std::string& what) {
+    throw Error(ErrorCode::InvalidInput, json_name + ": " + what);
+  };
+  if (const std::string deep = json_nesting_problem(text); !deep.empty()) bad(deep);
+  ordered_json j;
+  try {
+    j = ordered_json::parse(text);
+  } catch (const std::exception& e) {  // also numbers no double holds (1e400)
+    bad(std::string("not valid JSON: ") + e.what());
+  }
+  if (!j.is_object() || j.value("format", "") != "dhfcast-decomposition" ||
+      !j.contains("parts") || !j["parts"].is_array())
+    bad("not a dhfcast decomposition (format, parts)");
+  if (j.contains("parameters") && !j["parameters"].is_object()) bad("parameters is not an object");
+  if (j.contains("parameters") && j["parameters"].contains("epsilon_mm")) {
+    opts.epsilon_mm = folder_number(j["parameters"]["epsilon_mm"], kMaxFolderCoordinateMm,
+                                    "parameters.epsilon_mm", json_name);
+    if (!(opts.epsilon_mm > 0)) bad("parameters.epsilon_mm is not > 0");
+  }
+  if (j.contains("timings_s") && !j["timings_s"].is_object()) bad("timings_s is not an object");
+  const std::vector<Part> parts = read_folder_parts(out, j, json_name);
 
   const auto t0 = std::chrono::steady_clock::now();
   const std::vector<Mold> molds = build_molds(parts, opts);
@@ -372,30 +515,22 @@ std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts) {
 
   for (std::size_t i = 0; i < parts.size(); ++i) j["parts"][i]["molds"] = mold_json(molds[i]);
   j["parameters"]["molds"] = mold_parameters_json(opts);
-  if (j.contains("timings_s") && j["timings_s"].is_object()) j["timings_s"]["molds"] = seconds;
+  if (j.contains("timings_s")) j["timings_s"]["molds"] = seconds;
 
-  // New files beside the old ones, then swapped in: a failure leaves the folder as it was.
-  const std::string pid = std::to_string(::getpid());
-  const fs::path tmp = out / (".molds.tmp-" + pid);
-  std::error_code ec;
-  fs::remove_all(tmp, ec);
+  // The folder's new state is built whole beside it (the part files linked, not copied) and
+  // swapped in with one rename: a kill or a failure leaves the old folder or the new one.
+  remove_stale_temps(out);
+  const fs::path tmp = temp_beside(out);
   try {
+    if (!fs::create_directory(tmp, ec)) io_error("cannot create " + tmp.string(), ec);
+    link_folder(out, tmp, {"molds", "decomposition.json"});
     write_mold_files(tmp.string(), molds);
     fs::create_directories(tmp / "molds", ec);
     std::ofstream f(tmp / "decomposition.json", std::ios::binary);
     f << j.dump(2) << "\n";
     f.close();
     if (!f) throw Error(ErrorCode::Io, "cannot write " + (tmp / "decomposition.json").string());
-    const fs::path old = out / (".molds.old-" + pid);
-    fs::remove_all(old, ec);
-    if (fs::exists(out / "molds")) fs::rename(out / "molds", old, ec);
-    if (ec) io_error("cannot replace " + (out / "molds").string(), ec);
-    fs::rename(tmp / "molds", out / "molds", ec);
-    if (ec) io_error("cannot create " + (out / "molds").string(), ec);
-    fs::rename(tmp / "decomposition.json", json_path, ec);
-    if (ec) io_error("cannot replace " + json_path.string(), ec);
-    fs::remove_all(old, ec);
-    fs::remove_all(tmp, ec);
+    swap_in(tmp, out, outdir);
   } catch (...) {
     fs::remove_all(tmp, ec);
     throw;
