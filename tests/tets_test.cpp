@@ -10,6 +10,7 @@
 #include <numbers>
 
 #include "dhfcast/error.h"
+#include "dhfcast/mesh.h"
 #include "support/test_support.h"
 
 namespace dhfcast {
@@ -181,6 +182,22 @@ TEST(Tetrahedralize, InvalidOptionsThrow) {
     } catch (const Error& e) {
       EXPECT_EQ(e.code(), ErrorCode::InvalidOptions) << e.what();
     }
+  }
+}
+
+// CGAL's couplingdown is 1 mm wide in its own units: its thin arms are lost at the default facet
+// distance, and the message says the likely cause (units) and the fix.
+TEST(Tetrahedralize, TinyModelThatFallsApartIsToldToCheckItsUnits) {
+  const std::string path = test::cgal_mesh("couplingdown.off");
+  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
+  try {
+    tetrahedralize(load_solid(path).mesh, {});
+    ADD_FAILURE() << "no exception";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::TetrahedralizationFailed) << e.what();
+    EXPECT_NE(std::string(e.what()).find("disconnected pieces"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("try --size MM or --units"), std::string::npos)
+        << e.what();
   }
 }
 

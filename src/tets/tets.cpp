@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <string>
 #include <unordered_map>
 #include <utility>
@@ -147,11 +148,20 @@ TetMesh tetrahedralize(const TriMesh& surface, const TetOptions& opts) {
   // --- 3. check it is one closed volume, measure the boundary's deviation ---
   build_tet_adjacency(mesh);
   const std::int32_t components = num_components(mesh);
-  if (components != 1)
+  if (components != 1) {
+    // The input is one solid (load_solid() checks its shells), so thin parts were lost: most
+    // often because the model is tiny in mm, its units wrong.
+    const Box3 box = bounding_box(surface.vertices);
+    const double size_mm = (box.max - box.min).maxCoeff();
+    char size[32];
+    std::snprintf(size, sizeof size, "%.3g", size_mm);
     throw Error(ErrorCode::TetrahedralizationFailed,
                 "tets: the volume mesh has " + std::to_string(components) +
-                    " disconnected pieces; is the input one solid, or are thin parts lost? "
-                    "(try a smaller facet_distance_mm or a larger target_tets)");
+                    " disconnected pieces: thin parts of this model, " + size +
+                    " mm long, were lost" +
+                    (size_mm < 20.0 ? "; is it in mm? try --size MM or --units"
+                                    : "; try a smaller --facet-distance or more --tets"));
+  }
   if (!boundary_is_closed(mesh))
     throw Error(ErrorCode::TetrahedralizationFailed,
                 "tets: the volume mesh's boundary is not a closed surface");
