@@ -6,11 +6,19 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <csignal>
+#include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
 #include <sstream>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "dhfcast/mesh.h"
 #include "support/test_support.h"
@@ -232,6 +240,108 @@ TEST(Cli, OutputWithTrailingSlashIsWrittenAndReplacedWholeLeavingNoTemporaryFold
     names.push_back(e.path().filename().string());
   std::sort(names.begin(), names.end());
   EXPECT_EQ(names, (std::vector<std::string>{".out.dhfcast-tmp-1", "cube.obj", "out"}));
+}
+
+// Runs the CLI with `args` (stdout and stderr discarded) and SIGKILLs it after `after` unless it
+// ended before; returns its wall time.
+double run_killed_after(const std::vector<std::string>& args, std::chrono::duration<double> after) {
+  const auto start = std::chrono::steady_clock::now();
+  const pid_t pid = fork();
+  if (pid == 0) {
+    std::vector<char*> argv;
+    const std::string cli = test::cli_path();
+    argv.push_back(const_cast<char*>(cli.c_str()));
+    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    freopen("/dev/null", "w", stdout);
+    freopen("/dev/null", "w", stderr);
+    execv(cli.c_str(), argv.data());
+    _exit(127);
+  }
+  int status = 0;
+  while (waitpid(pid, &status, WNOHANG) == 0) {
+    if (std::chrono::steady_clock::now() - start >= after) {
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// The folder `out` is one whole decomposition: its JSON parses, and every file it names is a
+// complete binary STL. Returns the JSON.
+nlohmann::json expect_whole(const std::string& out) {
+  nlohmann::json j;
+  std::ifstream in(out + "/decomposition.json");
+  EXPECT_TRUE(in.good()) << out << " has no decomposition.json";
+  if (!in) return j;
+  j = nlohmann::json::parse(in, nullptr, false);
+  EXPECT_FALSE(j.is_discarded()) << out << "/decomposition.json is not whole";
+  if (j.is_discarded()) return j;
+  std::vector<std::string> files;
+  for (const auto& p : j["parts"]) {
+    files.push_back(p["mesh"]);
+    if (p.contains("molds") && p["molds"].contains("up"))
+      for (const char* half : {"up", "down"}) files.push_back(p["molds"][half]);
+  }
+  for (const std::string& f : files) {
+    std::ifstream stl(out + "/" + f, std::ios::binary);
+    char header[84] = {};
+    stl.read(header, 84);
+    std::uint32_t n = 0;
+    std::memcpy(&n, header + 80, 4);
+    std::error_code ec;
+    EXPECT_EQ(fs::file_size(out + "/" + f, ec), 84u + 50u * n) << f << " is not whole";
+  }
+  return j;
+}
+
+// decompose --force and molds, killed at random instants, leave either the whole old folder or
+// the whole new one, never a mix or nothing; leftovers of the killed runs go with the next run.
+TEST(Cli, KilledAtAnyInstantLeavesTheOldFolderOrTheNewOneWhole) {
+  const std::string dir = test::temp_dir("kill");
+  write_text(dir + "/cube.obj", cube_obj());
+  const std::string out = dir + "/out";
+  const std::vector<std::string> common = {"--tets", "2000", "--directions", "64",
+                                           "--restarts", "2", "--no-molds", "--force"};
+  auto decompose = [&](int seed) {
+    std::vector<std::string> args = {"decompose", dir + "/cube.obj", "-o", out, "--seed",
+                                     std::to_string(seed)};
+    args.insert(args.end(), common.begin(), common.end());
+    return args;
+  };
+  const double full = run_killed_after(decompose(1), std::chrono::seconds(120));
+  ASSERT_EQ(expect_whole(out)["parameters"]["seed"], 1);
+  std::mt19937 random(7);
+  std::uniform_real_distribution<double> instant(0.2, 1.2);  // mostly late: the swap is last
+  for (int i = 0; i < 30; ++i) {
+    const int seed = 2 + i % 2;
+    run_killed_after(decompose(seed), std::chrono::duration<double>(instant(random) * full));
+    const nlohmann::json j = expect_whole(out);
+    ASSERT_FALSE(j.is_discarded()) << "run " << i;
+    EXPECT_TRUE(j["parameters"]["seed"] == 1 || j["parameters"]["seed"] == 2 ||
+                j["parameters"]["seed"] == 3)
+        << "run " << i;
+  }
+  // Molds: the old folder has none, the new one a mold per part.
+  const double molds = run_killed_after({"molds", out}, std::chrono::seconds(300));
+  ASSERT_TRUE(expect_whole(out)["parts"][0].contains("molds"));
+  for (int i = 0; i < 20; ++i) {
+    const std::string wall = i % 2 ? "4" : "6";
+    run_killed_after({"molds", out, "--wall", wall},
+                     std::chrono::duration<double>(instant(random) * molds));
+    const nlohmann::json j = expect_whole(out);
+    ASSERT_FALSE(j.is_discarded()) << "run " << i;
+    const double w = j["parameters"]["molds"]["wall_mm"];
+    EXPECT_TRUE(w == 5 || w == 4 || w == 6) << "run " << i << ": wall " << w;
+  }
+  // A last run in peace removes every leftover.
+  ASSERT_LT(run_killed_after(decompose(1), std::chrono::seconds(120)), 120);
+  expect_whole(out);
+  for (const fs::directory_entry& e : fs::directory_iterator(dir))
+    EXPECT_TRUE(e.path().filename() == "cube.obj" || e.path().filename() == "out") << e.path();
 }
 
 TEST(Cli, CubeGivesOnePartAndTheContract) {
