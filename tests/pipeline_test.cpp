@@ -492,52 +492,34 @@ TEST(Pipeline, ConvexSolidIsOnePart) {
   EXPECT_TRUE(d.assembly.found);
 }
 
-// Decomposes `input` on all threads and on one, and expects the same JSON, part meshes and
-// mold halves; returns the first decomposition.
-Decomposition expect_same_output_on_any_thread_count(const TriMesh& input,
-                                                     const DecomposeOptions& opts,
-                                                     const std::string& name) {
-  const InputInfo info{name, 0, 0.0, {}, false};
+// Same input, options and seed give the same JSON, part meshes and mold halves on all threads
+// and on one. A small real model, every stage including the molds: the guarantee needs no large
+// model.
+TEST(Pipeline, SameSeedSameOutputOnAnyThreadCount) {
+  const std::string path = test::cgal_mesh("knot1.off");
+  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
+  const TriMesh input = test::load_scaled(path, 80.0);
+  DecomposeOptions opts = fast_options(4000);
+  opts.make_molds = true;
+  const InputInfo info{"knot1.off", 0, 0.0, {}, false};
   const Decomposition many = decompose(input, opts);
   tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
   const Decomposition single = decompose(input, opts);
   EXPECT_EQ(decomposition_json(info, opts, many, 0, 0, false),
             decomposition_json(info, opts, single, 0, 0, false));
-  EXPECT_EQ(many.parts.size(), single.parts.size());
-  for (std::size_t i = 0; i < std::min(many.parts.size(), single.parts.size()); ++i) {
+  ASSERT_EQ(many.parts.size(), single.parts.size());
+  for (std::size_t i = 0; i < many.parts.size(); ++i) {
     EXPECT_EQ(many.parts[i].mesh.vertices, single.parts[i].mesh.vertices) << "part " << i;
     EXPECT_EQ(many.parts[i].mesh.triangles, single.parts[i].mesh.triangles) << "part " << i;
     EXPECT_EQ(many.parts[i].triangle_neighbor, single.parts[i].triangle_neighbor) << "part " << i;
   }
-  EXPECT_EQ(many.molds.size(), single.molds.size());
-  for (std::size_t i = 0; i < std::min(many.molds.size(), single.molds.size()); ++i)
+  ASSERT_EQ(many.molds.size(), many.parts.size());
+  ASSERT_EQ(single.molds.size(), many.parts.size());
+  for (std::size_t i = 0; i < many.molds.size(); ++i)
     for (const auto half : {&Mold::up, &Mold::down}) {
       EXPECT_EQ((many.molds[i].*half).vertices, (single.molds[i].*half).vertices) << "mold " << i;
       EXPECT_EQ((many.molds[i].*half).triangles, (single.molds[i].*half).triangles) << "mold " << i;
     }
-  return many;
-}
-
-// A small real model, every stage including the molds: the guarantee needs no large model.
-TEST(Pipeline, SameSeedSameOutputOnAnyThreadCount) {
-  const std::string path = test::cgal_mesh("knot1.off");
-  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
-  DecomposeOptions opts = fast_options(4000);
-  opts.make_molds = true;
-  const Decomposition d =
-      expect_same_output_on_any_thread_count(test::load_scaled(path, 80.0), opts, "knot1.off");
-  EXPECT_EQ(d.molds.size(), d.parts.size());
-}
-
-// The elephant at this size has a dent filled after the cut (the booleans run there alone, not
-// one per part in parallel), so every step of the parts stage is covered.
-TEST(PipelineExtended, SameSeedSameOutputOnAnyThreadCountWithAFilledDent) {
-  const std::string path = test::cgal_mesh("elephant.off");
-  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
-  const TriMesh input = test::load_scaled(path, 275.0);
-  const Decomposition d =
-      expect_same_output_on_any_thread_count(input, fast_options(), "elephant.off");
-  EXPECT_GT(d.solid_cut.filled_dents, 0);
 }
 
 // Every part gets a mold that the independent checker accepts: halves closed and manifold, they
