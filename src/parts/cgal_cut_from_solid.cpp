@@ -480,12 +480,15 @@ std::optional<ExactMesh> fill_dents(
           exact_region(regions[j].mesh, std::vector<std::int32_t>(regions[j].mesh.triangles.size(),
                                                                   static_cast<std::int32_t>(j)));
       ExactMesh rest;
-      if (!other || !boolean(Boolean::Difference, hull, *other, rest, kFromSolid, Operands::Known))
+      // Checked: a neighbour's region here is not known free of self-intersections, and an
+      // unchecked one crashed the corefinement (CGAL's hand.off at 150 mm).
+      if (!other ||
+          !boolean(Boolean::Difference, hull, *other, rest, kFromSolid, Operands::Unchecked))
         return std::nullopt;
       hull = std::move(rest);
     }
     ExactMesh joined;
-    if (!boolean(Boolean::Union, *grown, hull, joined, kFromSolid, Operands::Known))
+    if (!boolean(Boolean::Union, *grown, hull, joined, kFromSolid, Operands::Unchecked))
       return std::nullopt;
     grown = std::move(joined);
   }
