@@ -69,6 +69,8 @@ class ProgressPrinter {
 
 // --threads: CLI11's NonNegativeNumber would print DBL_MAX as the upper bound.
 const CLI::Range kThreadRange(0, 1024);
+// --size: a longest side load_solid() does not call absurd (0.1 mm to 100 m).
+const CLI::Range kSizeRangeMm(0.1, 100000.0);
 
 // The names --units takes, and the size of one unit in mm.
 const std::map<std::string, double> kUnitsToMm = {
@@ -266,7 +268,7 @@ int main(int argc, char** argv) {
                                ->capture_default_str();
   dec->add_option("--size", cli.size_mm,
                   "Scale the input so that its longest bounding-box side is this many mm")
-      ->check(CLI::Range(0.1, 100000.0))
+      ->check(kSizeRangeMm)
       ->excludes(dec_scale)
       ->excludes(dec_units);
   dec->add_option("--threads", cli.threads, "Worker threads (0: all cores)")
@@ -306,7 +308,7 @@ int main(int argc, char** argv) {
           ->capture_default_str();
   chk->add_option("--size", check_opts.input_size_mm,
                   "As given to decompose: longest bounding-box side of --input, mm")
-      ->check(CLI::Range(0.1, 100000.0))
+      ->check(kSizeRangeMm)
       ->excludes(chk_scale)
       ->excludes(chk_units);
   chk->add_flag("--json", check_json, "Print all figures as JSON");
