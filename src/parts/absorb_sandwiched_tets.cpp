@@ -67,6 +67,30 @@ void walk_line(const TetMesh& tets, const FaceNormals& normals, std::int32_t t, 
   }
 }
 
+// Added to a footprint's sides, so that rounding on a line that grazes one never matters.
+constexpr double kFootprintSlackMm = 1e-6;
+
+// The box that a set of tets covers across a direction d: a line along d through a point
+// outside it meets none of them.
+struct Footprint {
+  explicit Footprint(const Vec3& d) : u(d.unitOrthogonal()), v(d.cross(u)) {}
+  Vec3 u, v;
+  double u_lo = INFINITY, u_hi = -INFINITY, v_lo = INFINITY, v_hi = -INFINITY;
+
+  void add(const TetMesh& tets, std::int32_t t) {
+    for (std::int32_t i : tets.tets[t]) {
+      const Vec3& x = tets.vertices[i];
+      u_lo = std::min(u_lo, x.dot(u)), u_hi = std::max(u_hi, x.dot(u));
+      v_lo = std::min(v_lo, x.dot(v)), v_hi = std::max(v_hi, x.dot(v));
+    }
+  }
+  // Whether x lies within the box grown by `grow` on every side.
+  bool contains(const Vec3& x, double grow) const {
+    const double a = x.dot(u), b = x.dot(v);
+    return a >= u_lo - grow && a <= u_hi + grow && b >= v_lo - grow && b <= v_hi + grow;
+  }
+};
+
 // The repair's working state: which part owns each tet, and each part's fixed attributes.
 // Parts are the face-connected components of the labeling at the start; a part keeps its id
 // while it gains and loses tets, even if it falls apart.
@@ -137,24 +161,19 @@ struct Parts {
   std::int32_t count_sandwiched_by(std::int32_t p, const std::vector<std::int32_t>& piece) const {
     const std::int32_t n = static_cast<std::int32_t>(owner.size());
     const Vec3 d = direction(p);
-    const Vec3 u = d.unitOrthogonal(), v = d.cross(u);
     // The piece's footprint across d, grown by its largest tet's size.
-    double u_lo = INFINITY, u_hi = -INFINITY, v_lo = INFINITY, v_hi = -INFINITY, grow = 0.0;
+    Footprint box(d);
+    double grow = 0.0;
     for (std::int32_t t : piece) {
-      for (std::int32_t i : tets.tets[t]) {
-        const Vec3& x = tets.vertices[i];
-        u_lo = std::min(u_lo, x.dot(u)), u_hi = std::max(u_hi, x.dot(u));
-        v_lo = std::min(v_lo, x.dot(v)), v_hi = std::max(v_hi, x.dot(v));
-        grow = std::max(grow, (x - centre[t]).norm());
-      }
+      box.add(tets, t);
+      for (std::int32_t i : tets.tets[t])
+        grow = std::max(grow, (tets.vertices[i] - centre[t]).norm());
     }
     const auto in = [&](std::int32_t w) { return owner[w] == p; };
     const auto any = [](std::int32_t) { return true; };
     std::vector<char> out(n, 0);
     tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
-      if (owner[t] == p || region[t] != region_of[p]) return;
-      const double a = centre[t].dot(u), b = centre[t].dot(v);
-      if (a < u_lo - grow || a > u_hi + grow || b < v_lo - grow || b > v_hi + grow) return;
+      if (owner[t] == p || region[t] != region_of[p] || !box.contains(centre[t], grow)) return;
       out[t] = reaches(t, d, in, any) && reaches(t, -d, in, any);
     });
     return static_cast<std::int32_t>(std::count(out.begin(), out.end(), char{1}));
@@ -233,11 +252,23 @@ std::int32_t settle(Parts& s, std::int32_t p, std::int32_t max_rounds) {
   // A gap of tets p gave away is not one it could not fill: p gave them up where it had to.
   const auto passable = [&](std::int32_t u) { return banned[u] || fillable(u); };
   std::vector<char> fill(n, 0), above(n, 0), below(n, 0);
+  // A tet whose centre lies outside p's footprint across d can reach p along +-d only when the
+  // line through it runs within its own size of the centre: beyond that, no walk from p or to p
+  // meets it. The walks below start only where they can matter.
+  double tet_radius = 0.0;
+  for (std::int32_t t = 0; t < n; ++t)
+    for (std::int32_t i : s.tets.tets[t])
+      tet_radius = std::max(tet_radius, (s.tets.vertices[i] - s.centre[t]).norm());
   for (std::int32_t round = 0; round < max_rounds; ++round) {
+    Footprint box(d);
+    for (std::int32_t t = 0; t < n; ++t)
+      if (in(t)) box.add(s.tets, t);
     tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
       end_of_column[t] = 0;
       const std::int32_t q = s.owner[t];
-      if (q == p || !s.frozen[q] || banned[t] || !s.may_join(t, p)) return;
+      if (q == p || !s.frozen[q] || banned[t] ||
+          !box.contains(s.centre[t], tet_radius + kFootprintSlackMm) || !s.may_join(t, p))
+        return;
       const auto in_q = [&](std::int32_t u) { return s.owner[u] == q; };
       end_of_column[t] =
           !(s.reaches(t, s.direction(q), in_q, any) && s.reaches(t, -s.direction(q), in_q, any));
@@ -248,7 +279,7 @@ std::int32_t settle(Parts& s, std::int32_t p, std::int32_t max_rounds) {
       if (in(t)) {
         above[t] = s.blocked_gap(t, d, in, passable);
         below[t] = s.blocked_gap(t, -d, in, passable);
-      } else if (fillable(t)) {
+      } else if (box.contains(s.centre[t], kFootprintSlackMm) && fillable(t)) {
         fill[t] = s.reaches(t, d, in, fillable) && s.reaches(t, -d, in, fillable);
       }
     });
