@@ -29,7 +29,7 @@ difference() {
   translate([62, 12, -1]) cylinder(r = 4.5, h = base.z + 2);
   translate([62, 38, -1]) cylinder(r = 4.5, h = base.z + 2);
   translate([62, 38, 5]) cylinder(r = 8, h = base.z);
-  // slots open at the top of the upright, with round bottoms at z = 46
+  // slots open at the top of the upright, with round bottoms (lowest at z = 42)
   for (y = [12, 38]) {
     translate([-1, y, 46]) rotate([0, 90, 0]) cylinder(r = 4, h = upright.x + 2);
     translate([-1, y - 4, 46]) cube([upright.x + 2, 8, 30]);
