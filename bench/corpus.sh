@@ -12,8 +12,7 @@
 # 0 within --timeout seconds (default 600) and every check of `dhfcast check --input` passes.
 # --keep DIR keeps each run's output folder and check report.
 set -euo pipefail
-here="$(cd "$(dirname "$0")/.." && pwd)"
-build="$here/build"
+source "$(dirname "$0")/common.sh"
 seeds="1 2 3"
 models=""
 size=150
@@ -21,16 +20,13 @@ limit=600
 keep=""
 while [ $# -gt 0 ]; do
   case "$1" in
-    --seeds) seeds="$2"; shift 2 ;;
-    --models) models="$2"; shift 2 ;;
-    --size) size="$2"; shift 2 ;;
-    --timeout) limit="$2"; shift 2 ;;
-    --build) build="$2"; shift 2 ;;
-    --keep) keep="$2"; shift 2 ;;
-    *) echo "usage: bench/corpus.sh [--seeds LIST] [--models LIST] [--size MM] [--timeout S] [--build DIR] [--keep DIR]" >&2; exit 2 ;;
+    --models) models="$2" ;;
+    --size) size="$2" ;;
+    *) common_option "$1" "${2:-}" || { echo "usage: bench/corpus.sh [--seeds LIST] [--models LIST] [--size MM] [--timeout S] [--build DIR] [--keep DIR]" >&2; exit 2; } ;;
   esac
+  shift 2
 done
-[ -x "$build/dhfcast" ] || { echo "corpus: build first (cmake --build $build)" >&2; exit 2; }
+require_build
 meshes="$build/testdata/cgal/data/meshes"
 [ -d "$meshes" ] || { echo "corpus: no CGAL data set at $meshes (install libcgal-demo, configure again)" >&2; exit 2; }
 if [ -z "$models" ]; then
@@ -46,40 +42,29 @@ for m in $models; do
   [ -n "$f" ] || { echo "corpus: no mesh named $m" >&2; continue; }
   for s in $seeds; do
     out="$tmp/$m-$s"
-    rc=0
-    /usr/bin/time -f '%M' -o "$tmp/mem" timeout --signal=KILL "$limit" \
-      "$build/dhfcast" decompose "$f" --size "$size" --seed "$s" -o "$out" --quiet \
-      2> "$tmp/err" || rc=$?
+    run_decompose "$limit" "$out" "$tmp/err" "$f" --size "$size" --seed "$s"
     if [ "$rc" -eq 3 ]; then
       echo "  $m: $(grep -m1 'error' "$tmp/err" || head -n 1 "$tmp/err")" >> "$tmp/rejected"
       break  # the input is invalid whatever the seed
     fi
-    peak_mb=$(( $(tail -n 1 "$tmp/mem" 2>/dev/null | tr -dc '0-9' || echo 0) / 1024 ))
     if [ "$rc" -ne 0 ]; then
-      why="exit $rc"; [ "$rc" -eq 137 ] && why="over ${limit} s (killed)"
-      printf '%-22s %4s %7s %6s %5s %8s %6s %6s %6s %6s %6s %7s %6s  FAIL: %s: %s\n' \
-        "$m" "$s" - - - - - - - - - - "$peak_mb" "$why" "$(grep -m1 'error' "$tmp/err" || true)"
+      printf '%-22s %4s %7s %6s %5s %8s %6s %6s %6s %6s %6s %7s %6s  FAIL: %s\n' \
+        "$m" "$s" - - - - - - - - - - "$peak_mb" "$(failure_reason "$limit" "$tmp/err")"
       continue
     fi
     "$build/dhfcast" check "$out" --input "$f" --size "$size" --json > "$tmp/check.json" 2> "$tmp/check.err" || true
     [ -n "$keep" ] && { mkdir -p "$keep"; rm -rf "${keep:?}/$m-$s"; cp -r "$out" "$keep/$m-$s"; cp "$tmp/check.json" "$keep/$m-$s.check.json"; }
-    /usr/bin/python3 - "$m" "$s" "$out" "$tmp/check.json" "$tmp/check.err" "$peak_mb" <<'PY' ||
+    /usr/bin/python3 - "$m" "$s" "$out" "$peak_mb" "$(check_verdict "$tmp/check.json" "$tmp/check.err")" <<'PY' ||
 import json, sys
-m, s, out, check_path, check_err, peak = sys.argv[1:7]
+m, s, out, peak, verdict = sys.argv[1:6]
 d = json.load(open(f"{out}/decomposition.json"))
 t = d["timings_s"]
 volume = d["input"]["volume_mm3"]
 smallest = min(p["volume_mm3"] for p in d["parts"]) / volume if volume > 0 else 0
-try:
-    checks = json.load(open(check_path))["checks"]
-    verdict = " ".join(f"{c['name']}:{c['status']}" for c in checks)
-    passed = all(c["status"] != "fail" for c in checks)
-except Exception:  # no report: check itself failed
-    verdict, passed = "check error: " + " ".join(open(check_err).read().split())[:200], False
 print(f"{m:<22} {s:>4} {d['input']['triangles']:7d} {d['tetrahedra']:6d} {len(d['parts']):5d} "
       f"{100 * smallest:7.3f}% {t['tetrahedralize']:6.1f} {t['accessibility']:6.1f} "
       f"{t['segmentation']:6.1f} {t['parts']:6.1f} {t['molds']:6.1f} {t['total']:7.1f} {peak:>6}  "
-      f"{'PASS' if passed else 'FAIL'} {verdict}")
+      f"{verdict}")
 PY
       echo "$m $s  FAIL: unreadable output folder"
   done
