@@ -148,6 +148,15 @@ int run_decompose(const CliOptions& cli) {
                  "once (%zu patches could not be mended: see carving.refused in "
                  "decomposition.json)\n",
                  d.carving.gap_lines_after, d.carving.refused.size());
+  const std::vector<std::int32_t> tiny = tiny_parts(d.parts, volume_mm3);
+  for (const Part& p : d.parts) {
+    if (std::find(tiny.begin(), tiny.end(), p.id) == tiny.end()) continue;
+    std::fprintf(stderr,
+                   "dhfcast: warning: part %d is %.2g %% of the volume (%.3g mm3), too small to be "
+                   "worth a mold of its own: no neighbour's direction allows its volume (try "
+                   "another --seed)\n",
+                   p.id, 100.0 * p.volume_mm3 / volume_mm3, p.volume_mm3);
+  }
   for (const InaccessibleRegion& r : d.inaccessible_regions)
     std::fprintf(stderr,
                  "dhfcast: note: %d tets (%.1f mm3) are accessible from no direction; that "

@@ -198,6 +198,15 @@ TEST(ExtractParts, TwoHalvesOfABoxAreTwoClosedOutwardParts) {
   }
 }
 
+// A part under 0.1 % of the model's volume is named, one just over it is not.
+TEST(TinyParts, PartsUnderATenthOfAPercentOfTheVolumeAreNamed) {
+  std::vector<Part> parts(4);
+  const double volumes_mm3[] = {5000.0, 4.9, 5.1, 1.0};
+  for (std::int32_t i = 0; i < 4; ++i) parts[i].id = 10 + i, parts[i].volume_mm3 = volumes_mm3[i];
+  EXPECT_EQ(tiny_parts(parts, 5000.0), (std::vector<std::int32_t>{11, 13}));
+  EXPECT_TRUE(tiny_parts(parts, 900.0).empty());
+}
+
 TEST(ExtractParts, LargerPartComesFirst) {
   const Grid g = make_grid(3, 1, 1, 5.0);
   const auto label = per_cell(g, [](const Cell& c) { return c[0] == 0 ? 0 : 1; });

@@ -72,6 +72,7 @@ struct SandwichRepair {
   std::int32_t stuck_tets = 0;
   double worst_share = 0.0;
   std::int32_t parts = 0;  // face-connected components of equal (region, label) in it
+  double smallest_part_mm3 = 0.0;  // the volume of the smallest of them
   // Pieces a part fell into when it lost tets that went whole to a neighbour, and their tets;
   // of those, the tets the neighbour's direction does not allow (tiny pieces only).
   std::int32_t merged_pieces = 0, merged_tets = 0, forced_tets = 0;
@@ -80,6 +81,12 @@ struct SandwichRepair {
   std::int32_t redirected_parts = 0;
   std::vector<SandwichMove> moves;  // summed by (region, from_label, to_label), in that order
 };
+
+// A part under this share of its model's volume is not worth a mold of its own (its sprue alone
+// may be larger): the user is warned of each.
+constexpr double kTinyPartShare = 1e-3;
+// The ids of the parts under kTinyPartShare of `volume_mm3`, in the parts' order.
+std::vector<std::int32_t> tiny_parts(const std::vector<Part>& parts, double volume_mm3);
 
 // Below this share of sandwiched volume in its worst part (SandwichRepair::worst_share), a
 // labeling counts as a set of double height fields: smoothing the interfaces and cutting the

@@ -254,4 +254,11 @@ std::vector<Part> extract_parts(const TetMesh& tets, const std::vector<std::int3
   return parts;
 }
 
+std::vector<std::int32_t> tiny_parts(const std::vector<Part>& parts, double volume_mm3) {
+  std::vector<std::int32_t> out;
+  for (const Part& p : parts)
+    if (p.volume_mm3 < kTinyPartShare * volume_mm3) out.push_back(p.id);
+  return out;
+}
+
 }  // namespace dhfcast
