@@ -26,4 +26,9 @@ std::string folder_file(const std::filesystem::path& folder, const std::string& 
 // Checked on the text, before parsing builds anything that deep.
 std::string json_nesting_problem(std::string_view text);
 
+// "" when `text` is JSON that parses into doubles and nests at most kMaxJsonDepth deep; else what
+// is wrong and the field where (its JSON path, e.g. "not valid JSON at parts[1].volume_mm3:
+// number overflow parsing '1e400'"). Builds no document.
+std::string json_problem(std::string_view text);
+
 }  // namespace dhfcast
