@@ -502,4 +502,17 @@ TEST(Cli, PartsAreCutFromTheInputUnlessTetSurfaceIsAsked) {
   EXPECT_NE(text.str().find("PASS fidelity"), std::string::npos) << text.str();
 }
 
+// CGAL's hand.off at 150 times its size, default options: decompose crashed (SIGSEGV in a
+// corefinement right after segmentation). It must finish, and check must give a verdict.
+TEST(CliExtended, HandAtScale150DecomposesAndCheckGivesAVerdict) {
+  const std::string hand = test::cgal_mesh("hand.off");
+  if (hand.empty()) GTEST_SKIP() << "CGAL's data set is absent";
+  const std::string out = test::temp_dir("hand") + "/out";
+  const RunResult r = run("decompose " + hand + " --scale 150 -o " + out + " --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const RunResult c = run("check " + out + " --input " + hand + " --scale 150");
+  EXPECT_TRUE(c.exit_code == 0 || c.exit_code == 5) << c.exit_code << ": " << c.err;
+  EXPECT_TRUE(c.err.empty()) << c.err;
+}
+
 }  // namespace
