@@ -11,6 +11,7 @@ packages=(
   libcgal-demo  # CGAL's data set: real closed meshes for the example and the default tests
   admesh prusa-slicer  # tests/print_check.sh: mold STLs are sound and slice
   openscad  # tests/shapes/*.scad: the shapes with a known answer, rendered by the tests
+  clang libclang-rt-14-dev  # scripts/fuzz.sh: libFuzzer targets, sanitized
 )
 
 missing=()

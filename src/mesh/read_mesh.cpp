@@ -188,32 +188,39 @@ TriMesh weld(detail::Soup soup) {
   return mesh;
 }
 
+using Parser = detail::Soup (*)(const std::string&, std::string_view);
+
+// The parser of `path`'s extension; refuses other extensions.
+Parser parser_for(const std::string& path) {
+  const std::string ext = lowercase_extension(path);
+  if (ext == "stl") return &detail::parse_stl;
+  if (ext == "obj") return &detail::parse_obj;
+  if (ext == "ply") return &detail::parse_ply;
+  if (ext == "off") return &detail::parse_off;
+  detail::fail_input(path, "",
+                     "unsupported file type " +
+                         (ext.empty() ? "(no extension)" : "'." + ext + "'") +
+                         "; supported: .stl, .obj, .ply, .off");
+}
+
 }  // namespace
+
+namespace detail {
+
+TriMesh mesh_from_data(const std::string& path, std::string_view data) {
+  const Parser parser = parser_for(path);
+  if (data.empty()) fail_input(path, "", "empty file");
+  Soup soup = parser(path, data);
+  if (soup.triangles.empty()) fail_input(path, "", "no triangles found");
+  return weld(std::move(soup));
+}
+
+}  // namespace detail
 
 TriMesh read_mesh(const std::string& path) {
   check_input_file(path);
-  const std::string ext = lowercase_extension(path);
-  using Parser = detail::Soup (*)(const std::string&, std::string_view);
-  Parser parser = nullptr;
-  if (ext == "stl")
-    parser = &detail::parse_stl;
-  else if (ext == "obj")
-    parser = &detail::parse_obj;
-  else if (ext == "ply")
-    parser = &detail::parse_ply;
-  else if (ext == "off")
-    parser = &detail::parse_off;
-  else
-    detail::fail_input(path, "",
-                       "unsupported file type " +
-                           (ext.empty() ? "(no extension)" : "'." + ext + "'") +
-                           "; supported: .stl, .obj, .ply, .off");
-
-  const std::string data = read_file(path);
-  if (data.empty()) detail::fail_input(path, "", "empty file");
-  detail::Soup soup = parser(path, data);
-  if (soup.triangles.empty()) detail::fail_input(path, "", "no triangles found");
-  return weld(std::move(soup));
+  parser_for(path);  // an unsupported extension is refused before the file is read
+  return detail::mesh_from_data(path, read_file(path));
 }
 
 }  // namespace dhfcast

@@ -24,6 +24,10 @@ Soup parse_obj(const std::string& path, std::string_view data);
 Soup parse_ply(const std::string& path, std::string_view data);
 Soup parse_off(const std::string& path, std::string_view data);
 
+// read_mesh() after reading: the parser of `path`'s extension applied to `data`, vertices welded.
+// Throws as read_mesh() does for malformed data.
+TriMesh mesh_from_data(const std::string& path, std::string_view data);
+
 // Throws Error{InvalidInput} "PATH: LOCATION: WHAT" (or "PATH: WHAT" when location is empty).
 [[noreturn]] void fail_input(const std::string& path, const std::string& location,
                              const std::string& what);
