@@ -214,6 +214,18 @@ TEST(ReadMesh, BinaryPlyBothByteOrders) {
   expect_welded_box(read_mesh(write_file("box_be.PLY", binary_ply_box(false))));
 }
 
+// Found by fuzzing: an element of 66666666666 items without properties looped for minutes. It
+// has nothing to read; an element with properties announcing more items than bytes is refused.
+TEST(ReadMesh, PlyElementCountsBeyondTheFileAreNotLoopedOver) {
+  std::string empty = binary_ply_box(true);
+  empty.insert(empty.find("end_header"), "element nothing 66666666666\n");
+  expect_welded_box(read_mesh(write_file("nothing.ply", empty)));
+  std::string huge = binary_ply_box(true);
+  huge.insert(huge.find("end_header"), "element extra 66666666666\nproperty uchar a\n");
+  expect_invalid(write_file("huge.ply", huge),
+                 "the header announces 66666666666 'extra' elements but the file has only ");
+}
+
 TEST(ReadMesh, OffWithQuadsCommentsAndColours) {
   std::ostringstream off;
   off << "OFF\n# a box\n\n8 6 12\n";
