@@ -684,6 +684,14 @@ TEST(Check, NumbersOutOfRangeAndDeepNestingFailContractNotTheProgram) {
   EXPECT_EQ(item(run(f), "contract").summary,
             "decomposition.json: not valid JSON at parts[0].direction[2]: number overflow "
             "parsing '1e400'");
+  // Found by fuzzing: nlohmann's message quotes the bytes it read, here no UTF-8; --json's
+  // output could not be written (std::terminate).
+  std::string bad_utf8 = text.str();
+  bad_utf8.replace(bad_utf8.find("\"format\""), 8, "\"f\xee" "mat\"");
+  std::ofstream(json_path) << bad_utf8;
+  const CheckReport utf8 = run(f);
+  EXPECT_NE(item(utf8, "contract").summary.find("not valid JSON"), std::string::npos);
+  EXPECT_FALSE(nlohmann::json::parse(format_json(utf8), nullptr, false).is_discarded());
   // Nesting that overflowed the stack.
   std::string deep = text.str();
   deep.insert(deep.rfind('}'), ", \"deep\": " + std::string(100000, '[') + std::string(100000, ']'));

@@ -667,7 +667,8 @@ std::string format_json(const CheckReport& report) {
                       {"figures", figures}});
   }
   const nlohmann::ordered_json j = {{"passed", report.passed()}, {"checks", checks}};
-  return j.dump(2) + "\n";
+  // Messages may quote bytes of the folder's files that are no UTF-8.
+  return j.dump(2, ' ', false, nlohmann::ordered_json::error_handler_t::replace) + "\n";
 }
 
 }  // namespace dhfcast

@@ -277,7 +277,8 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                       {"total", total_s}};
     if (opts.make_molds) j["timings_s"]["molds"] = d.timings.molds;
   }
-  return j.dump(2) + "\n";
+  // The input's path is the user's bytes, not always UTF-8.
+  return j.dump(2, ' ', false, ordered_json::error_handler_t::replace) + "\n";
 }
 
 namespace {
