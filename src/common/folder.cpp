@@ -93,7 +93,7 @@ class JsonPathTracker : public nlohmann::json::json_sax_t {
     return true;
   }
   bool open(bool array) {
-    frames_.push_back({.array = array});
+    frames_.push_back({.array = array, .index = 0, .key = {}});
     return true;
   }
   bool close() {
