@@ -492,15 +492,29 @@ TEST(Pipeline, ConvexSolidIsOnePart) {
   EXPECT_TRUE(d.assembly.found);
 }
 
+// CGAL's knot1 at 80 mm and options that decompose it quickly, molds included: the small real
+// model of the default tier's end-to-end tests. No path when the data set is absent.
+struct KnotCase {
+  std::string path = test::cgal_mesh("knot1.off");
+  TriMesh input;
+  DecomposeOptions opts = fast_options(4000);
+};
+KnotCase knot_with_molds() {
+  KnotCase k;
+  if (k.path.empty()) return k;
+  k.input = test::load_scaled(k.path, 80.0);
+  k.opts.make_molds = true;
+  return k;
+}
+
 // Same input, options and seed give the same JSON, part meshes and mold halves on all threads
 // and on one. A small real model, every stage including the molds: the guarantee needs no large
 // model.
 TEST(Pipeline, SameSeedSameOutputOnAnyThreadCount) {
-  const std::string path = test::cgal_mesh("knot1.off");
-  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
-  const TriMesh input = test::load_scaled(path, 80.0);
-  DecomposeOptions opts = fast_options(4000);
-  opts.make_molds = true;
+  const KnotCase knot = knot_with_molds();
+  if (knot.path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
+  const TriMesh& input = knot.input;
+  const DecomposeOptions& opts = knot.opts;
   const InputInfo info{"knot1.off", 0, 0.0, {}, false};
   const Decomposition many = decompose(input, opts);
   tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
@@ -526,11 +540,10 @@ TEST(Pipeline, SameSeedSameOutputOnAnyThreadCount) {
 // release along +-d, do not overlap the part, mould its whole surface (channel mouths counted
 // apart), and list a sprue and keys.
 TEST(Pipeline, MoldsOfARealModelPassTheChecker) {
-  const std::string path = test::cgal_mesh("knot1.off");
-  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
-  const TriMesh input = test::load_scaled(path, 80.0);
-  DecomposeOptions opts = fast_options(4000);
-  opts.make_molds = true;
+  const KnotCase knot = knot_with_molds();
+  if (knot.path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
+  const TriMesh& input = knot.input;
+  const DecomposeOptions& opts = knot.opts;
   const Decomposition d = decompose(input, opts);
   ASSERT_EQ(d.molds.size(), d.parts.size());
   for (const Mold& m : d.molds) {

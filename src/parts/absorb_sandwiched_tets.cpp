@@ -105,6 +105,7 @@ struct Parts {
   std::vector<std::int32_t> owner;
   std::vector<std::int32_t> label_of, region_of;
   std::vector<char> frozen;  // settled parts: their tets never move again
+  double tet_radius = 0.0;   // the largest distance from a tet's centre to one of its vertices
 
   std::int32_t size() const { return static_cast<std::int32_t>(label_of.size()); }
 
@@ -252,13 +253,9 @@ std::int32_t settle(Parts& s, std::int32_t p, std::int32_t max_rounds) {
   // A gap of tets p gave away is not one it could not fill: p gave them up where it had to.
   const auto passable = [&](std::int32_t u) { return banned[u] || fillable(u); };
   std::vector<char> fill(n, 0), above(n, 0), below(n, 0);
-  // A tet whose centre lies outside p's footprint across d can reach p along +-d only when the
-  // line through it runs within its own size of the centre: beyond that, no walk from p or to p
-  // meets it. The walks below start only where they can matter.
-  double tet_radius = 0.0;
-  for (std::int32_t t = 0; t < n; ++t)
-    for (std::int32_t i : s.tets.tets[t])
-      tet_radius = std::max(tet_radius, (s.tets.vertices[i] - s.centre[t]).norm());
+  // A line along d through a point outside p's footprint across d meets none of p's tets, and a
+  // tet it crosses has its centre within s.tet_radius of it: the walks below start only from
+  // tets where they can matter.
   for (std::int32_t round = 0; round < max_rounds; ++round) {
     Footprint box(d);
     for (std::int32_t t = 0; t < n; ++t)
@@ -267,7 +264,7 @@ std::int32_t settle(Parts& s, std::int32_t p, std::int32_t max_rounds) {
       end_of_column[t] = 0;
       const std::int32_t q = s.owner[t];
       if (q == p || !s.frozen[q] || banned[t] ||
-          !box.contains(s.centre[t], tet_radius + kFootprintSlackMm) || !s.may_join(t, p))
+          !box.contains(s.centre[t], s.tet_radius + kFootprintSlackMm) || !s.may_join(t, p))
         return;
       const auto in_q = [&](std::int32_t u) { return s.owner[u] == q; };
       end_of_column[t] =
@@ -595,7 +592,7 @@ Parts make_state(const TetMesh& tets, const FaceNormals& normals,
                  const std::vector<std::int32_t>& region,
                  const std::vector<std::vector<Vec3>>& directions, const TetAllowsLabel& allows) {
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
-  Parts s{tets, normals, region, directions, allows, {}, {}, {}, {}, {}, {}};
+  Parts s{tets, normals, region, directions, allows, {}, {}, {}, {}, {}, {}, 0.0};
   s.centre.resize(n);
   s.volume.resize(n);
   for (std::int32_t t = 0; t < n; ++t) {
@@ -603,6 +600,8 @@ Parts make_state(const TetMesh& tets, const FaceNormals& normals,
     s.centre[t] = 0.25 * (tets.vertices[k[0]] + tets.vertices[k[1]] + tets.vertices[k[2]] +
                           tets.vertices[k[3]]);
     s.volume[t] = tet_volume(tets, t);
+    for (std::int32_t i : k)
+      s.tet_radius = std::max(s.tet_radius, (tets.vertices[i] - s.centre[t]).norm());
   }
   return s;
 }
