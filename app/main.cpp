@@ -5,34 +5,102 @@
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <oneapi/tbb/global_control.h>
 #include <string>
+#include <thread>
 
 #include "dhfcast/check.h"
 #include "dhfcast/error.h"
 #include "dhfcast/mesh.h"
 #include "dhfcast/pipeline.h"
 #include "dhfcast/report.h"
+#include "dhfcast/stop.h"
 
 using namespace dhfcast;
 
 namespace {
 
-enum ExitCode { kOk = 0, kFailure = 1, kUsage = 2, kBadInput = 3, kIo = 4, kCheckFailed = 5 };
+enum ExitCode {
+  kOk = 0,
+  kFailure = 1,
+  kUsage = 2,
+  kBadInput = 3,
+  kIo = 4,
+  kCheckFailed = 5,
+  kTimedOut = 6
+};
 
 int exit_code(ErrorCode code) {
   switch (code) {
     case ErrorCode::InvalidInput: return kBadInput;
     case ErrorCode::InvalidOptions: return kUsage;
     case ErrorCode::Io: return kIo;
+    case ErrorCode::Stopped: return kTimedOut;
     default: return kFailure;
   }
 }
 
 using Clock = std::chrono::steady_clock;
+
+// --timeout: a stop is asked of the stages at the deadline; they honour it at their next check
+// point (Error{Stopped}, unwinding). A stage that reaches none within the grace period (a long
+// CGAL call) is not waited for: the process ends with kTimedOut, unless an output folder is being
+// written, which is then let finish (a stop is never honoured within one, so no half-written
+// folder is left either way).
+class Watchdog {
+ public:
+  static constexpr double kGraceSeconds = 5.0;
+
+  explicit Watchdog(double seconds) : seconds_(seconds) {
+    if (seconds > 0) thread_ = std::thread([this] { watch(); });
+  }
+  ~Watchdog() {
+    {
+      const std::lock_guard lock(mutex_);
+      done_ = true;
+    }
+    wake_.notify_all();
+    if (thread_.joinable()) thread_.join();
+  }
+  Watchdog(const Watchdog&) = delete;
+  Watchdog& operator=(const Watchdog&) = delete;
+
+  std::string message() const {
+    char text[96];
+    std::snprintf(text, sizeof text, "time limit of %g s reached (--timeout); nothing written",
+                  seconds_);
+    return text;
+  }
+
+ private:
+  void watch() {
+    std::unique_lock lock(mutex_);
+    auto wait = [&](double s) {
+      return wake_.wait_for(lock, std::chrono::duration<double>(s), [this] { return done_; });
+    };
+    if (wait(seconds_)) return;
+    request_stop();
+    if (wait(kGraceSeconds)) return;
+    std::unique_lock writing(output_write_mutex(), std::try_to_lock);
+    if (!writing.owns_lock()) return;  // a folder is being written: the run is ending
+    // Holding the write lock, no folder is begun: none of ours is half-written.
+    const std::string line = "dhfcast: error: " + message() + "\n";
+    [[maybe_unused]] const ssize_t n = ::write(STDERR_FILENO, line.data(), line.size());
+    std::_Exit(kTimedOut);
+  }
+
+  double seconds_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  bool done_ = false;
+  std::thread thread_;
+};
 
 // Stage progress on stderr: one line per stage; on a terminal, a live percentage.
 class ProgressPrinter {
@@ -69,6 +137,8 @@ class ProgressPrinter {
 
 // --threads: CLI11's NonNegativeNumber would print DBL_MAX as the upper bound.
 const CLI::Range kThreadRange(0, 1024);
+// --timeout: 0 (none) to a year.
+const CLI::Range kTimeoutRange(0.0, 365.0 * 24 * 3600);
 // --size: a longest side load_solid() does not call absurd (0.1 mm to 100 m).
 const CLI::Range kSizeRangeMm(0.1, 100000.0);
 
@@ -216,6 +286,13 @@ int main(int argc, char** argv) {
                "rigid mold"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "dhfcast 0.1.0");
+  double timeout_s = 0.0;
+  app.add_option("--timeout", timeout_s,
+                 "Stop after this many seconds (exit code 6, nothing written; 0: no limit)")
+      ->check(kTimeoutRange)
+      ->capture_default_str();
+  // Given before or after the command's name.
+  app.fallthrough();
 
   CliOptions cli;
   DecomposeOptions& o = cli.decompose;
@@ -356,6 +433,7 @@ int main(int argc, char** argv) {
     return code == 0 ? kOk : kUsage;
   }
 
+  Watchdog watchdog(timeout_s);
   try {
     if (dec->parsed()) {
       o.tets.seed = o.segment.seed;
@@ -374,7 +452,8 @@ int main(int argc, char** argv) {
       return run_check(check_opts, check_json);
     }
   } catch (const Error& e) {
-    std::fprintf(stderr, "dhfcast: error: %s\n", e.what());
+    std::fprintf(stderr, "dhfcast: error: %s\n",
+                 e.code() == ErrorCode::Stopped ? watchdog.message().c_str() : e.what());
     return exit_code(e.code());
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "dhfcast: error: out of memory (try fewer --tets)\n");

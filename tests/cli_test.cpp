@@ -344,6 +344,49 @@ TEST(Cli, KilledAtAnyInstantLeavesTheOldFolderOrTheNewOneWhole) {
     EXPECT_TRUE(e.path().filename() == "cube.obj" || e.path().filename() == "out") << e.path();
 }
 
+// --timeout stops decompose (in the volume mesher, here), molds and check cleanly: exit code 6,
+// one line, no folder written or changed, no temporary folder left.
+TEST(Cli, TimeoutStopsWithExitCode6AndWritesNothing) {
+  const std::string knot = test::cgal_mesh("knot1.off");
+  if (knot.empty()) GTEST_SKIP() << "CGAL's data set is absent";
+  const std::string dir = test::temp_dir("timeout");
+  const std::string out = dir + "/out";
+  const auto t0 = std::chrono::steady_clock::now();
+  const RunResult r = run("decompose " + knot + " --size 50 -o " + out + " --timeout 1");
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_EQ(r.exit_code, 6) << r.err;
+  // After the progress lines, one error line.
+  const std::string last_line = "dhfcast: error: time limit of 1 s reached (--timeout); nothing "
+                                "written\n";
+  EXPECT_TRUE(r.err.ends_with(last_line)) << r.err;
+  EXPECT_EQ(r.err.find("error"), r.err.size() - last_line.size() + 9) << r.err;
+  EXPECT_LT(seconds, 15);  // the deadline, the watchdog's grace and some
+  EXPECT_TRUE(fs::is_empty(dir)) << "left " << fs::directory_iterator(dir)->path();
+
+  // molds and check on a folder: stopped before they are done, the folder unchanged.
+  write_text(dir + "/cube.obj", cube_obj());
+  ASSERT_EQ(run("decompose " + dir + "/cube.obj -o " + out + " --tets 2000 --quiet").exit_code, 0);
+  const std::string json_before = [&] {
+    std::stringstream s;
+    s << std::ifstream(out + "/decomposition.json").rdbuf();
+    return s.str();
+  }();
+  for (const std::string command : {"molds " + out + " --wall 7", "check " + out}) {
+    const RunResult stopped = run("--timeout 0.001 " + command);
+    EXPECT_EQ(stopped.exit_code, 6) << command << ": " << stopped.err;
+    EXPECT_NE(stopped.err.find("time limit of 0.001 s reached"), std::string::npos)
+        << stopped.err;
+    std::stringstream after;
+    after << std::ifstream(out + "/decomposition.json").rdbuf();
+    EXPECT_EQ(after.str(), json_before) << command;
+    for (const fs::directory_entry& e : fs::directory_iterator(dir))
+      EXPECT_TRUE(e.path().filename() == "cube.obj" || e.path().filename() == "out") << e.path();
+  }
+  EXPECT_EQ(run("check " + out + " --timeout 600").exit_code, 0);
+  EXPECT_EQ(run("check " + out + " --timeout -1").exit_code, 2);
+}
+
 TEST(Cli, CubeGivesOnePartAndTheContract) {
   const std::string dir = test::temp_dir("cube");
   write_text(dir + "/cube.obj", cube_obj());

@@ -235,5 +235,59 @@ TEST(Tetrahedralize, BunnyAtDefaultTarget) {
   RecordProperty("min_dihedral_deg", std::to_string(min_dihedral_deg(tets)));
 }
 
+// CGAL's mpi_triang.off (180 triangles, 20 mm) has sharp edges 1 um apart: the balls protecting
+// them shrank for ever and the mesher never returned. They now stop at a least size.
+TEST(Tetrahedralize, SharpEdgesCloserThanTheTetSizeEndTheMesher) {
+  const std::string path = test::cgal_mesh("mpi_triang.off");
+  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
+  const TetMesh tets = tetrahedralize(load_solid(path).mesh, {.target_tets = 5000});
+  EXPECT_LE(tets.tets.size(), 50000u);
+  expect_valid_tets(tets);
+  EXPECT_TRUE(boundary_stats(tets).closed);
+}
+
+// An icosphere: the icosahedron's faces split `levels` times, vertices pushed to the sphere.
+TriMesh icosphere(double radius_mm, int levels) {
+  const double g = (1.0 + std::sqrt(5.0)) / 2.0;
+  TriMesh m;
+  m.vertices = {{-1, g, 0}, {1, g, 0}, {-1, -g, 0}, {1, -g, 0}, {0, -1, g}, {0, 1, g},
+                {0, -1, -g}, {0, 1, -g}, {g, 0, -1}, {g, 0, 1}, {-g, 0, -1}, {-g, 0, 1}};
+  m.triangles = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
+                 {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                 {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
+                 {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
+  for (int l = 0; l < levels; ++l) {
+    std::map<std::pair<std::int32_t, std::int32_t>, std::int32_t> middle;
+    auto mid = [&](std::int32_t a, std::int32_t b) {
+      const auto [it, added] = middle.emplace(std::minmax(a, b), 0);
+      if (added) {
+        it->second = static_cast<std::int32_t>(m.vertices.size());
+        m.vertices.push_back((m.vertices[a] + m.vertices[b]) / 2.0);
+      }
+      return it->second;
+    };
+    std::vector<Tri> finer;
+    for (const Tri& t : m.triangles) {
+      const std::int32_t ab = mid(t[0], t[1]), bc = mid(t[1], t[2]), ca = mid(t[2], t[0]);
+      finer.insert(finer.end(), {{t[0], ab, ca}, {t[1], bc, ab}, {t[2], ca, bc}, {ab, bc, ca}});
+    }
+    m.triangles = std::move(finer);
+  }
+  for (Vec3& v : m.vertices) v = radius_mm * v.normalized();
+  return m;
+}
+
+// A 50 m sphere (under load_solid()'s 100 m limit) was meshed at the default 0.1 mm facet
+// distance: millions of boundary facets, memory growing for ever. The distance bound follows the
+// tet size, so the count follows --tets at any scale.
+TEST(Tetrahedralize, FiftyMetreSphereCountFollowsTheTarget) {
+  for (const double radius_mm : {25.0, 25000.0}) {
+    const TetMesh tets = tetrahedralize(icosphere(radius_mm, 3), {.target_tets = 5000});
+    EXPECT_GE(tets.tets.size(), 3000u) << radius_mm;
+    EXPECT_LE(tets.tets.size(), 8000u) << radius_mm;
+    expect_valid_tets(tets);
+  }
+}
+
 }  // namespace
 }  // namespace dhfcast

@@ -14,6 +14,7 @@ enum class ErrorCode {
   TetrahedralizationFailed,  // the volume mesher gave no usable mesh
   BooleanFailed,             // a mesh boolean (molds) gave no valid solid
   Internal,                  // a broken invariant: a bug
+  Stopped,                   // stopped on request before the end (request_stop(): --timeout)
 };
 
 // The only exception type dhfcast throws. what() is a one-line, user-facing message.

@@ -21,6 +21,7 @@
 #include "dhfcast/error.h"
 #include "dhfcast/folder.h"
 #include "dhfcast/mesh.h"
+#include "dhfcast/stop.h"
 
 namespace dhfcast {
 
@@ -556,6 +557,7 @@ CheckReport check_output(const CheckOptions& options) {
     context.input.emplace(input);
   }
   report.items.push_back(contract_item(contents));
+  throw_if_stop_requested();
   const std::vector<LoadedMesh> meshes = load_meshes(outdir, contents, options);
   report.items.push_back(solids_item(meshes));
 
@@ -619,11 +621,12 @@ CheckReport check_output(const CheckOptions& options) {
     for (std::int32_t id : contents.order) context.order.push_back(index_of_id.at(id));
   }
 
-  report.items.push_back(detail::check_coverage(context));
-  report.items.push_back(detail::check_dhf(context));
-  report.items.push_back(detail::check_assembly(context));
-  report.items.push_back(detail::check_molds(context));
-  report.items.push_back(detail::check_fidelity(context));
+  // A stop (--timeout) is honoured between the checks.
+  for (auto* check : {&detail::check_coverage, &detail::check_dhf, &detail::check_assembly,
+                      &detail::check_molds, &detail::check_fidelity}) {
+    throw_if_stop_requested();
+    report.items.push_back(check(context));
+  }
   return report;
 }
 

@@ -18,6 +18,7 @@
 
 #include "dhfcast/error.h"
 #include "dhfcast/mesh.h"
+#include "dhfcast/stop.h"
 #include "dhfcast/tolerance.h"
 #include "molds_internal.h"
 
@@ -711,6 +712,7 @@ Mold build_mold(const Part& part, const MoldOptions& opts) {
   opts.validate();
   constexpr int kAttempts = 4;
   for (int attempt = 0;; ++attempt) {
+    throw_if_stop_requested();
     try {
       return try_mold(part, opts, attempt);
     } catch (const Error& e) {
@@ -726,6 +728,7 @@ std::vector<Mold> build_molds(const std::vector<Part>& parts, const MoldOptions&
     try {
       molds[i] = build_mold(parts[i], opts);
     } catch (const Error& e) {
+      if (e.code() == ErrorCode::Stopped) throw;  // the run's, not this part's
       molds[i] = Mold{};
       molds[i].part = parts[i].id;
       molds[i].error = e.what();

@@ -12,6 +12,7 @@
 #include "dhfcast/directions.h"
 #include "dhfcast/error.h"
 #include "dhfcast/pipeline.h"
+#include "dhfcast/stop.h"
 
 namespace dhfcast {
 
@@ -445,7 +446,9 @@ void validate_options(const DecomposeOptions& o) {
 Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
                         const StageProgress& progress) {
   validate_options(opts);
+  // Each progress report is also where a stop (--timeout) is honoured.
   auto report = [&](const std::string& stage, double f) {
+    throw_if_stop_requested();
     if (progress) progress(stage, f);
   };
   // Stages report their own progress strictly inside (0, 1): start and end are said here.

@@ -19,6 +19,7 @@
 #include "dhfcast/error.h"
 #include "dhfcast/folder.h"
 #include "dhfcast/mesh.h"
+#include "dhfcast/stop.h"
 
 namespace fs = std::filesystem;
 using nlohmann::ordered_json;
@@ -371,6 +372,7 @@ void check_output_location(const std::string& outdir, bool replace, const std::s
     throw Error(ErrorCode::Io, "cannot create " + outdir + ": folder " +
                                    out.parent_path().string() + " does not exist");
   // The folder is built beside `out`: find out now, not after the work, if that is allowed.
+  const std::lock_guard writing(output_write_mutex());
   const fs::path probe = temp_beside(out);
   fs::remove_all(probe, ec);
   if (!fs::create_directory(probe, ec))
@@ -382,6 +384,9 @@ void write_output(const std::string& outdir, const std::string& json, const Deco
                   bool replace) {
   check_output_location(outdir, replace);
   const fs::path out = folder_path(outdir);
+  // A stop is honoured before the folder is begun, never while it is built.
+  const std::lock_guard writing(output_write_mutex());
+  throw_if_stop_requested();
   remove_stale_temps(out);
   const fs::path tmp = temp_beside(out);
   std::error_code ec;
@@ -515,7 +520,10 @@ std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts) {
   if (j.contains("timings_s")) j["timings_s"]["molds"] = seconds;
 
   // The folder's new state is built whole beside it (the part files linked, not copied) and
-  // swapped in with one rename: a kill or a failure leaves the old folder or the new one.
+  // swapped in with one rename: a kill or a failure leaves the old folder or the new one. A stop
+  // is honoured before the folder is begun, never while it is built.
+  const std::lock_guard writing(output_write_mutex());
+  throw_if_stop_requested();
   remove_stale_temps(out);
   const fs::path tmp = temp_beside(out);
   try {

@@ -25,12 +25,20 @@ constexpr int kMaxRuns = 3;
 constexpr double kInitialSizeFactor = 1.45;
 // Lower bound on the measured count-vs-edge exponent: a boundary-bound count still falls.
 constexpr double kMinExponent = 1.0;
+// The boundary's distance bound is at least this fraction of the tet edge. A bound in mm alone
+// makes the count grow with the model's size (a 50 m sphere at 0.1 mm needs millions of boundary
+// facets); relative to the edge, the count depends on the shape and --tets only.
+constexpr double kMinFacetDistancePerEdge = 0.01;
+// A run stops at this many vertices per target tet (a mesh has about one vertex per 5 to 6
+// tets, so its tets stay within about 10 times the target): a mesh that would grow further
+// (feature edges too close together to protect, say) ends the stage instead of the memory.
+constexpr double kMaxVerticesPerTargetTet = 2.0;
 
 // Sizes for tets of edge `edge_mm`: a regular tet's circumradius is edge * sqrt(6) / 4, a
 // boundary triangle's edge / sqrt(3).
 detail::MeshSizes sizes_for_edge(double edge_mm, double facet_distance_mm) {
   return {.facet_size_mm = edge_mm / std::sqrt(3.0),
-          .facet_distance_mm = facet_distance_mm,
+          .facet_distance_mm = std::max(facet_distance_mm, kMinFacetDistancePerEdge * edge_mm),
           .cell_size_mm = edge_mm * std::sqrt(6.0) / 4.0};
 }
 
@@ -119,14 +127,27 @@ TetMesh tetrahedralize(const TriMesh& surface, const TetOptions& opts) {
   // size: after two runs, the exponent is measured instead (secant on log count vs log edge).
   double exponent = 3.0;
   double last_log_edge = 0.0, last_log_count = 0.0;
+  const auto max_vertices = static_cast<std::size_t>(kMaxVerticesPerTargetTet * target);
   for (int run = 0; run < kMaxRuns; ++run) {
-    const std::int64_t count = mesher.refine(sizes_for_edge(edge_mm, opts.facet_distance_mm));
-    if (count == 0)
+    const auto [count, capped] =
+        mesher.refine(sizes_for_edge(edge_mm, opts.facet_distance_mm), max_vertices);
+    if (capped && run + 1 == kMaxRuns)
+      throw Error(ErrorCode::TetrahedralizationFailed,
+                  "tets: the volume mesher went past " + std::to_string(max_vertices) +
+                      " vertices for --tets " + std::to_string(opts.target_tets) +
+                      " and was stopped (features of the model too small or too close together "
+                      "for that size; try a larger --facet-distance or more --tets)");
+    if (count == 0 && !capped)
       throw Error(ErrorCode::TetrahedralizationFailed,
                   "tets: the mesher produced no tets (is the surface closed and outward?)");
-    const double ratio = static_cast<double>(count) / target;
-    if (std::abs(ratio - 1.0) <= kCountTolerance || run + 1 == kMaxRuns) break;
-    const double log_edge = std::log(edge_mm), log_count = std::log(static_cast<double>(count));
+    // An unfinished run counts as at least its budget's tets (about 5 per vertex): the next run
+    // is coarser.
+    const double made =
+        capped ? std::max(static_cast<double>(count), 5.0 * static_cast<double>(max_vertices))
+               : static_cast<double>(count);
+    const double ratio = made / target;
+    if (!capped && (std::abs(ratio - 1.0) <= kCountTolerance || run + 1 == kMaxRuns)) break;
+    const double log_edge = std::log(edge_mm), log_count = std::log(made);
     if (run > 0 && log_edge != last_log_edge)
       exponent =
           std::clamp((last_log_count - log_count) / (log_edge - last_log_edge), kMinExponent, 3.0);

@@ -16,6 +16,12 @@ struct MeshSizes {
   double cell_size_mm = 0.0;       // upper bound on a tet's circumradius
 };
 
+// What one meshing run made.
+struct RefineResult {
+  std::int64_t tets = 0;  // tets in the complex
+  bool capped = false;    // the run stopped at its vertex budget: the mesh is unfinished
+};
+
 // Owns the meshing domain (built once from the input surface) and the last mesh made from it,
 // so a size calibration can rerun the mesher without rebuilding the domain's AABB tree.
 class VolumeMesher {
@@ -26,9 +32,10 @@ class VolumeMesher {
   VolumeMesher(const VolumeMesher&) = delete;
   VolumeMesher& operator=(const VolumeMesher&) = delete;
 
-  // Meshes the volume afresh with these sizes (the same seed every time) and returns the
-  // number of tets in the complex.
-  std::int64_t refine(const MeshSizes& sizes);
+  // Meshes the volume afresh with these sizes (the same seed every time), stopping when the
+  // triangulation reaches `max_vertices` (feature protection included). Throws Error{Stopped}
+  // when request_stop() is called meanwhile.
+  RefineResult refine(const MeshSizes& sizes, std::size_t max_vertices);
   // Removes slivers from the last mesh (sliver exudation, deterministic: no time limit).
   void exude();
   // The last mesh's tets in the complex, vertices compactly numbered. Orientation as CGAL gives it.
