@@ -27,8 +27,9 @@ constexpr double kInitialSizeFactor = 1.45;
 constexpr double kMinExponent = 1.0;
 // The boundary's distance bound is at least this fraction of the tet edge. A bound in mm alone
 // makes the count grow with the model's size (a 50 m sphere at 0.1 mm needs millions of boundary
-// facets); relative to the edge, the count depends on the shape and --tets only.
-constexpr double kMinFacetDistancePerEdge = 0.01;
+// facets); relative to the edge, the count depends on the shape and --tets only. Small enough to
+// leave models of a few hundred mm at the default 0.1 mm untouched.
+constexpr double kMinFacetDistancePerEdge = 0.005;
 // A run stops at this many vertices per target tet (a mesh has about one vertex per 5 to 6
 // tets, so its tets stay within about 10 times the target): a mesh that would grow further
 // (feature edges too close together to protect, say) ends the stage instead of the memory.
