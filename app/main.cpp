@@ -223,8 +223,8 @@ int run_decompose(const CliOptions& cli) {
     if (std::find(tiny.begin(), tiny.end(), p.id) == tiny.end()) continue;
     std::fprintf(stderr,
                    "dhfcast: warning: part %d is %.2g %% of the volume (%.3g mm3), too small to be "
-                   "worth a mold of its own: no neighbour's direction allows its volume (try "
-                   "another --seed)\n",
+                   "worth a mold of its own: every labeling tried has one, and no neighbour's "
+                   "direction allows its volume (try another --seed)\n",
                    p.id, 100.0 * p.volume_mm3 / volume_mm3, p.volume_mm3);
   }
   for (const InaccessibleRegion& r : d.inaccessible_regions)

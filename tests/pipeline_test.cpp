@@ -414,6 +414,10 @@ TEST(PipelineExtended, FertilitysBlockedWayIsClearedAndCheckConfirmsTheOrder) {
   }
   EXPECT_TRUE(d.assembly.found) << d.assembly.message;
   expect_checks_pass(check_written(input, opts, d, "fertility"), {"assembly", "dhf"});
+  // No part too small to be worth a mold (a candidate without one exists: at 50k tets the one
+  // ranked first has a 6-tet part of 0.002 % of the volume).
+  for (const Part& p : d.parts)
+    EXPECT_GE(p.volume_mm3, kTinyPartShare * total_volume(d.tets)) << "part " << p.id;
 }
 
 // Doubletorus at the paper's tet count: the candidate ranked first makes two parts that lock

@@ -83,7 +83,8 @@ struct SandwichRepair {
 };
 
 // A part under this share of its model's volume is not worth a mold of its own (its sprue alone
-// may be larger): the user is warned of each.
+// may be larger): decompose() keeps a labeling without one where a candidate allows, and the
+// user is warned of any left.
 constexpr double kTinyPartShare = 1e-3;
 // The ids of the parts under kTinyPartShare of `volume_mm3`, in the parts' order.
 std::vector<std::int32_t> tiny_parts(const std::vector<Part>& parts, double volume_mm3);

@@ -732,6 +732,12 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
   repair.worst_share = best.worst_share;
   repair.parts = best.parts;
   repair.converged = best.tets == 0;
+  std::int32_t num_parts = 0;
+  const std::vector<std::int32_t> part = detail::label_components(tets, label, region, num_parts);
+  std::vector<double> part_volume(num_parts, 0.0);
+  for (std::int32_t t = 0; t < n; ++t) part_volume[part[t]] += s.volume[t];
+  if (num_parts > 0)
+    repair.smallest_part_mm3 = *std::min_element(part_volume.begin(), part_volume.end());
   std::map<std::tuple<std::int32_t, std::int32_t, std::int32_t>, SandwichMove> moves;
   for (std::int32_t t = 0; t < n; ++t) {
     if (initial[t] == label[t]) continue;

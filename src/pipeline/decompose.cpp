@@ -115,19 +115,22 @@ struct RepairedCandidate {
 
 // The candidates in the order they are kept: those whose worst part has at most twice the
 // smallest share of sandwiched volume found (or kCleanSandwichShare, if larger) compete, and come
-// first; among them the fewest parts first, then the smaller share, then the segmentation's own
-// order (smaller variance of part volumes, then lower energy, then index). Returns indices into
-// `repaired` and, in `competing`, how many compete.
+// first; among them those without a tiny part (kTinyPartShare of `volume_mm3`) first, then the
+// fewest parts, then the smaller share, then the segmentation's own order (smaller variance of
+// part volumes, then lower energy, then index). Returns indices into `repaired` and, in
+// `competing`, how many compete.
 std::vector<std::size_t> rank_candidates(const std::vector<RepairedCandidate>& repaired,
                                          const std::vector<LabelingCandidate>& candidates,
-                                         std::size_t& competing) {
+                                         double volume_mm3, std::size_t& competing) {
   double least = INFINITY;
   for (const RepairedCandidate& r : repaired) least = std::min(least, r.repair.worst_share);
   const double cap = std::max(kCleanSandwichShare, 2 * least);
   const auto key = [&](std::size_t i) {
     const RepairedCandidate& r = repaired[i];
     const LabelingCandidate& c = candidates[r.index];
-    return std::make_tuple(r.repair.worst_share > cap, r.repair.parts, r.repair.worst_share,
+    return std::make_tuple(r.repair.worst_share > cap,
+                           r.repair.smallest_part_mm3 < kTinyPartShare * volume_mm3,
+                           r.repair.parts, r.repair.worst_share,
                            c.volume_variance_mm6, c.energy, c.restart);
   };
   std::vector<std::size_t> order(repaired.size());
@@ -139,6 +142,13 @@ std::vector<std::size_t> rank_candidates(const std::vector<RepairedCandidate>& r
         return r.repair.worst_share <= cap;
       }));
   return order;
+}
+
+// Whether a part is under kTinyPartShare of `volume_mm3`.
+bool has_tiny_part(const std::vector<Part>& parts, double volume_mm3) {
+  return std::any_of(parts.begin(), parts.end(), [&](const Part& p) {
+    return p.volume_mm3 < kTinyPartShare * volume_mm3;
+  });
 }
 
 // Distinct directions a labeling uses.
@@ -564,11 +574,10 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   // order along +-d does (doubletorus: 80 against 0).
   t0 = Clock::now();
   report("parts", 0.0);
+  const double tets_volume = total_volume(d.tets);
   std::size_t competing = 0;
-  const std::vector<std::size_t> ranked = rank_candidates(repaired, candidates, competing);
-  double tets_volume = 0.0;
-  for (std::size_t t = 0; t < num_tets; ++t)
-    tets_volume += tet_volume(d.tets, static_cast<std::int32_t>(t));
+  const std::vector<std::size_t> ranked =
+      rank_candidates(repaired, candidates, tets_volume, competing);
   const PartsContext context{
       solid,    d.tets, region_directions,
       d.access, opts,   std::cbrt(tets_volume / std::max<double>(1.0, num_tets))};
@@ -576,8 +585,10 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
     AssembledParts stage;
     std::size_t repaired_index = 0;  // in `repaired`
     std::int32_t gap_lines = 0;
+    bool tiny_part = false;  // one of its parts is under kTinyPartShare of the volume
     auto key() const {
-      return std::make_tuple(!stage.parts.assembly.found, gap_lines, stage.parts.parts.size());
+      return std::make_tuple(!stage.parts.assembly.found, tiny_part, gap_lines,
+                             stage.parts.parts.size());
     }
   };
   double least_share = INFINITY;
@@ -589,11 +600,15 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
     const RepairedCandidate& r = repaired[ranked[k]];
     const bool found = best && best->stage.parts.assembly.found;
     const bool for_assembly = k < competing && !found;
+    // While the best has a tiny part, a candidate without one at the tets is made too.
+    const bool for_tiny = best && best->tiny_part &&
+                          r.repair.smallest_part_mm3 >= kTinyPartShare * tets_volume &&
+                          d.made_candidates.size() < kMadeCandidates;
     if (best) {
-      if (found && best->gap_lines == 0) break;
+      if (found && best->gap_lines == 0 && !best->tiny_part) break;
       const bool for_gaps = d.made_candidates.size() < kMadeCandidates &&
                             r.repair.worst_share <= kGapCandidateShare * least_share;
-      if (!for_assembly && !for_gaps) continue;
+      if (!for_assembly && !for_gaps && !for_tiny) continue;
     }
     Made made{{context.make(r.label, r.region), {}, {}}, ranked[k]};
     auto gaps_of = [&] {
@@ -602,10 +617,11 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
     std::vector<std::vector<DhfGap>> gaps = gaps_of();
     made.gap_lines = count_gaps(gaps);
     // Tried for its gaps only, it is dropped when it starts with more than the best has left.
-    const bool drop = best && !for_assembly && made.gap_lines > best->gap_lines;
+    const bool drop = best && !for_assembly && !for_tiny && made.gap_lines > best->gap_lines;
     if (!drop) {
       if (clear_ways(context, r.region, false, made.stage)) gaps = gaps_of();
       made.gap_lines = fill_gap_rounds(context, r.region, std::move(gaps), made.stage);
+      made.tiny_part = has_tiny_part(made.stage.parts.parts, tets_volume);
     }
     MadeCandidate m;
     m.restart = candidates[r.index].restart;
