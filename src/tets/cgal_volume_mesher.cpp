@@ -49,10 +49,6 @@ constexpr double kFeatureAngleDeg = 70.0;
 // Mesh_3 quality bounds: boundary facets' smallest angle, tets' circumradius / shortest edge.
 constexpr double kFacetAngleDeg = 25.0;
 constexpr double kCellRadiusEdgeRatio = 3.0;
-// Feature edges are protected by balls no smaller than this fraction of the boundary facets'
-// size. Without a least size (make_mesh_3's), balls on feature edges closer together than that
-// shrink for ever (CGAL's mpi_triang.off: sharp edges 1 um apart on a 20 mm model).
-constexpr double kLeastFeatureBallPerFacetSize = 0.01;
 // Exudation works on tets whose smallest dihedral angle is below this. Without a bound it
 // costs several times the meshing and does not raise the minimum, set by boundary slivers.
 constexpr double kExudeSliverBoundDeg = 15.0;
@@ -118,32 +114,12 @@ RefineResult VolumeMesher::refine(const MeshSizes& sizes, std::size_t max_vertic
       params::cell_size = sizes.cell_size_mm);
   // Mesh_3 has no callback: its own checks of a vertex budget and of a stop flag end a run.
   CGAL::Mesh_error_code stopped = CGAL::CGAL_MESH_3_NO_ERROR;
-  Complex& c3t3 = impl_->c3t3;
   try {
-    // make_mesh_3's steps (CGAL 5.5), but for the feature balls' least size.
-    c3t3 = Complex();
-    using Sizing = CGAL::Mesh_3::internal::Edge_criteria_sizing_field_wrapper<
-        Criteria::Edge_criteria>;
-    CGAL::Mesh_3::Protect_edges_sizing_field<Complex, Domain, Sizing> protect(
-        c3t3, *impl_->domain, Sizing(criteria.edge_criteria_object()),
-        kLeastFeatureBallPerFacetSize * sizes.facet_size_mm, max_vertices, &stopped,
-        &stop_flag());
-    protect(true);
-    // Protection alone may give no 3D triangulation or no boundary facet: surface points then.
-    bool more_points = c3t3.triangulation().dimension() != 3;
-    if (!more_points) {
-      CGAL::Mesh_3::C3T3_helpers<Complex, Domain> helper(c3t3, *impl_->domain);
-      helper.update_restricted_facets();
-      more_points = c3t3.number_of_facets() == 0;
-    }
-    if (more_points) CGAL::Mesh_3::internal::init_c3t3(c3t3, *impl_->domain, criteria, -1);
-    if (stopped == CGAL::CGAL_MESH_3_NO_ERROR)
-      CGAL::refine_mesh_3(
-          c3t3, *impl_->domain, criteria, params::no_perturb(), params::no_exude(),
-          params::no_reset_c3t3(),
-          params::mesh_3_options(params::maximal_number_of_vertices = max_vertices,
-                                 params::pointer_to_error_code = &stopped,
-                                 params::pointer_to_stop_atomic_boolean = &stop_flag()));
+    impl_->c3t3 = CGAL::make_mesh_3<Complex>(
+        *impl_->domain, criteria, params::no_perturb(), params::no_exude(),
+        params::mesh_3_options(params::maximal_number_of_vertices = max_vertices,
+                               params::pointer_to_error_code = &stopped,
+                               params::pointer_to_stop_atomic_boolean = &stop_flag()));
   } catch (const CGAL::Failure_exception& e) {
     throw mesher_error("Mesh_3", e);
   }
