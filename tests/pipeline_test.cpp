@@ -263,7 +263,7 @@ TEST(PipelineExtended, ElephantAtPaperSize) {
   EXPECT_LT(d.sandwich.worst_share, 0.5 * first_repair.worst_share);
 
   // Of the candidates made into parts, the one kept is the parts written, and none made in full
-  // beats it: an assembly order first, then fewer gap lines, then fewer parts.
+  // beats it: an assembly order first, then no tiny part, then fewer gap lines, then fewer parts.
   ASSERT_FALSE(d.made_candidates.empty());
   ASSERT_EQ(std::count_if(d.made_candidates.begin(), d.made_candidates.end(),
                           [](const MadeCandidate& m) { return m.kept; }),
@@ -275,7 +275,7 @@ TEST(PipelineExtended, ElephantAtPaperSize) {
   EXPECT_EQ(kept.parts, static_cast<std::int32_t>(d.parts.size()));
   EXPECT_EQ(kept.assembly_found, d.assembly.found);
   auto key = [](const MadeCandidate& m) {
-    return std::make_tuple(!m.assembly_found, m.gap_lines, m.parts);
+    return std::make_tuple(!m.assembly_found, m.tiny_part, m.gap_lines, m.parts);
   };
   for (const MadeCandidate& m : d.made_candidates) {
     if (!m.dropped) {

@@ -45,8 +45,8 @@ struct StageTimes {
 
 // A tet region that was feasible for no direction and was decomposed again on its own.
 struct InaccessibleRegion {
-  std::int32_t id = 0;         // its region number (Part::region)
-  std::int32_t tets = 0;       // tets in it
+  std::int32_t id = 0;    // its region number (Part::region)
+  std::int32_t tets = 0;  // tets in it
   double volume_mm3 = 0.0;
   std::int32_t still_inaccessible_tets = 0;  // tets still feasible for no direction of the
                                              // region's own surface; merged into a neighbour
@@ -79,6 +79,7 @@ struct MadeCandidate {
   // candidate tried for its gaps only is not pursued when it starts with more than the best has
   // left.
   std::int32_t gap_lines = 0;
+  bool tiny_part = false;  // one of its parts is under kTinyPartShare of the volume
   bool dropped = false;
   bool kept = false;
 };
@@ -87,7 +88,7 @@ struct MadeCandidate {
 struct Decomposition {
   TetMesh tets;
   std::vector<Vec3> directions;
-  AccessibilityField access;         // of the whole solid
+  AccessibilityField access;  // of the whole solid
   Labeling labeling;  // of the whole solid (label -1: inaccessible); the candidate kept is the
                       // one closest to double height fields after the sandwich repair
   std::vector<InaccessibleRegion> inaccessible_regions;
@@ -110,7 +111,7 @@ struct Decomposition {
   // Holes carved where gaps were still left (paper §4.3.1), after the label-level repairs.
   Carving carving;
   std::vector<MadeCandidate> made_candidates;  // the one kept is marked
-  std::vector<Mold> molds;  // one per part, in part order; empty when !make_molds
+  std::vector<Mold> molds;             // one per part, in part order; empty when !make_molds
   double assembly_tolerance_mm = 0.0;  // depth into a part below which a move does not block
   StageTimes timings;
 };

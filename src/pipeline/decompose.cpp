@@ -129,9 +129,8 @@ std::vector<std::size_t> rank_candidates(const std::vector<RepairedCandidate>& r
     const RepairedCandidate& r = repaired[i];
     const LabelingCandidate& c = candidates[r.index];
     return std::make_tuple(r.repair.worst_share > cap,
-                           r.repair.smallest_part_mm3 < kTinyPartShare * volume_mm3,
-                           r.repair.parts, r.repair.worst_share,
-                           c.volume_variance_mm6, c.energy, c.restart);
+                           r.repair.smallest_part_mm3 < kTinyPartShare * volume_mm3, r.repair.parts,
+                           r.repair.worst_share, c.volume_variance_mm6, c.energy, c.restart);
   };
   std::vector<std::size_t> order(repaired.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
@@ -146,17 +145,16 @@ std::vector<std::size_t> rank_candidates(const std::vector<RepairedCandidate>& r
 
 // Whether a part is under kTinyPartShare of `volume_mm3`.
 bool has_tiny_part(const std::vector<Part>& parts, double volume_mm3) {
-  return std::any_of(parts.begin(), parts.end(), [&](const Part& p) {
-    return p.volume_mm3 < kTinyPartShare * volume_mm3;
-  });
+  return std::any_of(parts.begin(), parts.end(),
+                     [&](const Part& p) { return p.volume_mm3 < kTinyPartShare * volume_mm3; });
 }
 
 // Distinct directions a labeling uses.
 std::int32_t count_labels(std::vector<std::int32_t> label) {
   std::sort(label.begin(), label.end());
   label.erase(std::unique(label.begin(), label.end()), label.end());
-  return static_cast<std::int32_t>(std::count_if(label.begin(), label.end(),
-                                                 [](std::int32_t l) { return l >= 0; }));
+  return static_cast<std::int32_t>(
+      std::count_if(label.begin(), label.end(), [](std::int32_t l) { return l >= 0; }));
 }
 
 // What the parts stage makes of one labeling.
@@ -478,8 +476,8 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   t0 = Clock::now();
   d.directions = fibonacci_directions(opts.directions);
   report("accessibility", 0.0);
-  d.access = compute_accessibility(
-      solid, d.tets, d.directions, opts.access, inner("accessibility"));
+  d.access =
+      compute_accessibility(solid, d.tets, d.directions, opts.access, inner("accessibility"));
   report("accessibility", 1.0);
   d.timings.accessibility = seconds_since(t0);
 
@@ -488,8 +486,8 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   report("segmentation", 0.0);
   // The candidates' repair below takes longer than finding them: half the progress each.
   const auto segmentation_progress = inner("segmentation");
-  d.labeling = segment(d.tets, d.access, opts.segment,
-                       [&](double f) { segmentation_progress(0.5 * f); });
+  d.labeling =
+      segment(d.tets, d.access, opts.segment, [&](double f) { segmentation_progress(0.5 * f); });
   const std::size_t num_tets = d.tets.tets.size();
   std::vector<std::vector<Vec3>> region_directions{d.directions};
 
@@ -506,9 +504,9 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
     for (std::int32_t t : component) info.volume_mm3 += tet_volume(d.tets, t);
 
     const TetMesh sub = sub_mesh(d.tets, component);
-    const std::vector<Part> shell = extract_parts(
-        sub, std::vector<std::int32_t>(sub.tets.size(), 0),
-        std::vector<std::int32_t>(sub.tets.size(), 0), {{Vec3::UnitZ()}});
+    const std::vector<Part> shell =
+        extract_parts(sub, std::vector<std::int32_t>(sub.tets.size(), 0),
+                      std::vector<std::int32_t>(sub.tets.size(), 0), {{Vec3::UnitZ()}});
     const AccessibilityField sub_field =
         compute_accessibility(shell.at(0).mesh, sub, d.directions, opts.access);
     const Labeling sub_labeling = segment(sub, sub_field, opts.segment);
@@ -628,6 +626,7 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
     m.parts = static_cast<std::int32_t>(made.stage.parts.parts.size());
     m.assembly_found = made.stage.parts.assembly.found;
     m.gap_lines = made.gap_lines;
+    m.tiny_part = made.tiny_part;
     m.dropped = drop;
     d.made_candidates.push_back(m);
     if (!drop && (!best || made.key() < best->key()))
@@ -643,10 +642,12 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
           dhf_gaps(tried.parts.parts, kGapLines, opts.access.epsilon_mm);
       best->gap_lines = fill_gap_rounds(context, r.region, std::move(gaps), tried);
       best->stage = std::move(tried);
+      best->tiny_part = has_tiny_part(best->stage.parts.parts, tets_volume);
       MadeCandidate& m = d.made_candidates[kept];
       m.parts = static_cast<std::int32_t>(best->stage.parts.parts.size());
       m.assembly_found = true;
       m.gap_lines = best->gap_lines;
+      m.tiny_part = best->tiny_part;
     }
   }
   d.made_candidates[kept].kept = true;

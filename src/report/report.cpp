@@ -61,7 +61,8 @@ ordered_json mold_json(const Mold& m) {
   auto channels = [](const std::vector<MoldChannel>& list) {
     ordered_json out = ordered_json::array();
     for (const MoldChannel& c : list)
-      out.push_back({{"mouth", vec(c.mouth)}, {"exit", vec(c.exit)}, {"diameter_mm", c.diameter_mm}});
+      out.push_back(
+          {{"mouth", vec(c.mouth)}, {"exit", vec(c.exit)}, {"diameter_mm", c.diameter_mm}});
     return out;
   };
   ordered_json keys = ordered_json::array();
@@ -80,13 +81,14 @@ ordered_json mold_json(const Mold& m) {
           {"sprues", channels(m.sprues)},
           {"vents", channels(m.vents)},
           {"keys", keys},
-          {"face_split", {{"up_triangles", s.up_faces},
-                          {"down_triangles", s.down_faces},
-                          {"up_area_mm2", s.up_area_mm2},
-                          {"down_area_mm2", s.down_area_mm2},
-                          {"both_ways_area_mm2", s.both_area_mm2},
-                          {"neither_way_area_mm2", s.neither_area_mm2},
-                          {"parting_line_mm", s.parting_line_mm}}}};
+          {"face_split",
+           {{"up_triangles", s.up_faces},
+            {"down_triangles", s.down_faces},
+            {"up_area_mm2", s.up_area_mm2},
+            {"down_area_mm2", s.down_area_mm2},
+            {"both_ways_area_mm2", s.both_area_mm2},
+            {"neither_way_area_mm2", s.neither_area_mm2},
+            {"parting_line_mm", s.parting_line_mm}}}};
 }
 
 [[noreturn]] void io_error(const std::string& what, const std::error_code& ec) {
@@ -235,6 +237,7 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                     {"parts", m.parts},
                     {"assembly_found", m.assembly_found},
                     {"gap_lines", m.gap_lines},
+                    {"tiny_part", m.tiny_part},
                     {"dropped", m.dropped},
                     {"kept", m.kept}});
   j["candidates_made"] = made;
@@ -498,8 +501,8 @@ std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts) {
   // Also numbers no double holds (1e400), named by their field.
   if (const std::string wrong = json_problem(text); !wrong.empty()) bad(wrong);
   ordered_json j = ordered_json::parse(text);
-  if (!j.is_object() || j.value("format", "") != "dhfcast-decomposition" ||
-      !j.contains("parts") || !j["parts"].is_array())
+  if (!j.is_object() || j.value("format", "") != "dhfcast-decomposition" || !j.contains("parts") ||
+      !j["parts"].is_array())
     bad("not a dhfcast decomposition (format, parts)");
   if (j.contains("parameters") && !j["parameters"].is_object()) bad("parameters is not an object");
   if (j.contains("parameters") && j["parameters"].contains("epsilon_mm")) {
