@@ -242,7 +242,7 @@ TEST(Tetrahedralize, SharpEdgesCloserThanTheTetSizeEndTheMesher) {
   const std::string path = test::cgal_mesh("mpi_triang.off");
   if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
   try {
-    const TetMesh tets = tetrahedralize(load_solid(path).mesh, {.target_tets = 5000});
+    const TetMesh tets = tetrahedralize(load_solid(path).mesh, {.target_tets = 1000});
     ADD_FAILURE() << "meshed into " << tets.tets.size() << " tets";
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::TetrahedralizationFailed) << e.what();
