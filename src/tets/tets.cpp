@@ -25,11 +25,6 @@ constexpr int kMaxRuns = 3;
 constexpr double kInitialSizeFactor = 1.45;
 // Lower bound on the measured count-vs-edge exponent: a boundary-bound count still falls.
 constexpr double kMinExponent = 1.0;
-// The boundary's distance bound is at least this fraction of the tet edge. A bound in mm alone
-// makes the count grow with the model's size (a 50 m sphere at 0.1 mm needs millions of boundary
-// facets); relative to the edge, the count depends on the shape and --tets only. Small enough to
-// leave models of a few hundred mm at the default 0.1 mm untouched.
-constexpr double kMinFacetDistancePerEdge = 0.005;
 // A run stops at this many vertices per target tet (a mesh has about one vertex per 5 to 6
 // tets, so its tets stay within about 10 times the target): a mesh that would grow further
 // (feature edges too close together to protect, say) ends the stage instead of the memory.
@@ -39,7 +34,7 @@ constexpr double kMaxVerticesPerTargetTet = 2.0;
 // boundary triangle's edge / sqrt(3).
 detail::MeshSizes sizes_for_edge(double edge_mm, double facet_distance_mm) {
   return {.facet_size_mm = edge_mm / std::sqrt(3.0),
-          .facet_distance_mm = std::max(facet_distance_mm, kMinFacetDistancePerEdge * edge_mm),
+          .facet_distance_mm = facet_distance_mm,
           .cell_size_mm = edge_mm * std::sqrt(6.0) / 4.0};
 }
 
@@ -132,12 +127,21 @@ TetMesh tetrahedralize(const TriMesh& surface, const TetOptions& opts) {
   for (int run = 0; run < kMaxRuns; ++run) {
     const auto [count, capped] =
         mesher.refine(sizes_for_edge(edge_mm, opts.facet_distance_mm), max_vertices);
-    if (capped && run + 1 == kMaxRuns)
-      throw Error(ErrorCode::TetrahedralizationFailed,
-                  "tets: the volume mesher went past " + std::to_string(max_vertices) +
-                      " vertices for --tets " + std::to_string(opts.target_tets) +
-                      " and was stopped (features of the model too small or too close together "
-                      "for that size; try a larger --facet-distance or more --tets)");
+    if (capped && run + 1 == kMaxRuns) {
+      // The boundary's distance bound is in mm: on a model metres across it asks for millions
+      // of boundary facets.
+      const double size_mm =
+          (bounding_box(surface.vertices).max - bounding_box(surface.vertices).min).maxCoeff();
+      throw Error(
+          ErrorCode::TetrahedralizationFailed,
+          "tets: the volume mesher went past " + std::to_string(max_vertices) +
+              " vertices for --tets " + std::to_string(opts.target_tets) + " and was stopped (" +
+              (size_mm > 2000.0 ? "the model is " + std::to_string(std::lround(size_mm / 1000.0)) +
+                                      " m long: is it in mm? try --size MM or --units, or a larger "
+                                      "--facet-distance)"
+                                : "features of the model too small or too close together for that "
+                                  "size; try a larger --facet-distance or more --tets)"));
+    }
     if (count == 0 && !capped)
       throw Error(ErrorCode::TetrahedralizationFailed,
                   "tets: the mesher produced no tets (is the surface closed and outward?)");
