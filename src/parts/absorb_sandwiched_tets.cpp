@@ -6,6 +6,8 @@
 #include <array>
 #include <cmath>
 #include <map>
+#include <memory>
+#include <span>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -67,6 +69,41 @@ void walk_line(const TetMesh& tets, const FaceNormals& normals, std::int32_t t, 
   }
 }
 
+// The tets walk_line() visits from every tet's centre along one direction, in order. They do not
+// depend on the labeling, and the repair walks the same lines round after round: read from here,
+// a walk is a scan of an array instead of a face test per step.
+class LineTable {
+ public:
+  LineTable(const TetMesh& tets, const FaceNormals& normals, const std::vector<Vec3>& centre,
+            const Vec3& d) {
+    const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
+    start_.assign(n + 1, 0);
+    tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
+      std::int64_t length = 0;
+      walk_line(tets, normals, t, centre[t], d, [&](std::int32_t) { return ++length, true; });
+      start_[t + 1] = length;
+    });
+    for (std::int32_t t = 0; t < n; ++t) start_[t + 1] += start_[t];
+    tets_.resize(start_[n]);
+    tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
+      std::int32_t* out = tets_.data() + start_[t];
+      walk_line(tets, normals, t, centre[t], d, [&](std::int32_t u) { return *out++ = u, true; });
+    });
+  }
+  std::span<const std::int32_t> from(std::int32_t t) const {
+    return {tets_.data() + start_[t], tets_.data() + start_[t + 1]};
+  }
+  std::size_t bytes() const { return 8 * start_.size() + 4 * tets_.size(); }
+
+ private:
+  std::vector<std::int64_t> start_;
+  std::vector<std::int32_t> tets_;
+};
+
+// Line tables take memory in proportion to the tets times the tets a line crosses: past this
+// budget for one repair, further directions are walked instead.
+constexpr std::size_t kLineTableBudgetBytes = std::size_t{1} << 30;
+
 // Added to a footprint's sides, so that rounding on a line that grazes one never matters.
 constexpr double kFootprintSlackMm = 1e-6;
 
@@ -106,6 +143,40 @@ struct Parts {
   std::vector<std::int32_t> label_of, region_of;
   std::vector<char> frozen;  // settled parts: their tets never move again
   double tet_radius = 0.0;   // the largest distance from a tet's centre to one of its vertices
+  std::vector<std::pair<Vec3, std::shared_ptr<const LineTable>>> lines;  // by direction
+  std::size_t line_bytes = 0;
+
+  // Tables of the lines along +-d of every direction `label` uses, within the budget. Called
+  // outside parallel loops: the walks read the tables without a lock.
+  void prepare_lines(const std::vector<std::int32_t>& label) {
+    std::vector<std::pair<std::int32_t, std::int32_t>> used;
+    for (std::size_t t = 0; t < label.size(); ++t) used.emplace_back(region[t], label[t]);
+    std::sort(used.begin(), used.end());
+    used.erase(std::unique(used.begin(), used.end()), used.end());
+    for (const auto& [r, l] : used)
+      for (const Vec3& d : {directions[r][l], Vec3(-directions[r][l])}) {
+        if (line_table(d) || line_bytes > kLineTableBudgetBytes) continue;
+        auto table = std::make_shared<const LineTable>(tets, normals, centre, d);
+        line_bytes += table->bytes();
+        lines.emplace_back(d, std::move(table));
+      }
+  }
+  const LineTable* line_table(const Vec3& d) const {
+    for (const auto& [e, table] : lines)
+      if (e == d) return table.get();
+    return nullptr;
+  }
+  // Calls visit(u) for the tets walk_line() visits from t's centre along d, until visit returns
+  // false.
+  template <class Visit>
+  void walk_from(std::int32_t t, const Vec3& d, Visit&& visit) const {
+    if (const LineTable* table = line_table(d)) {
+      for (std::int32_t u : table->from(t))
+        if (!visit(u)) return;
+      return;
+    }
+    walk_line(tets, normals, t, centre[t], d, visit);
+  }
 
   std::int32_t size() const { return static_cast<std::int32_t>(label_of.size()); }
 
@@ -131,7 +202,7 @@ struct Parts {
   template <class In, class Passable>
   bool blocked_gap(std::int32_t t, const Vec3& d, In&& in, Passable&& passable) const {
     bool blocked = false, found = false;
-    walk_line(tets, normals, t, centre[t], d, [&](std::int32_t u) {
+    walk_from(t, d, [&](std::int32_t u) {
       if (in(u)) {
         found = blocked;
         return !found;
@@ -147,7 +218,7 @@ struct Parts {
   template <class In, class Passable>
   bool reaches(std::int32_t t, const Vec3& d, In&& in, Passable&& passable) const {
     bool found = false;
-    walk_line(tets, normals, t, centre[t], d, [&](std::int32_t u) {
+    walk_from(t, d, [&](std::int32_t u) {
       if (in(u)) {
         found = true;
         return false;
@@ -353,10 +424,8 @@ struct Sandwiches {
 Sandwiches count_sandwiched(const Parts& s, const std::vector<std::int32_t>& label,
                             std::vector<std::int32_t>* within_part = nullptr) {
   const TetMesh& tets = s.tets;
-  const FaceNormals& normals = s.normals;
   const std::vector<std::int32_t>& region = s.region;
   const std::vector<std::vector<Vec3>>& directions = s.directions;
-  const std::vector<Vec3>& centre = s.centre;
   const std::vector<double>& volume = s.volume;
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
   Sandwiches out;
@@ -373,14 +442,14 @@ Sandwiches count_sandwiched(const Parts& s, const std::vector<std::int32_t>& lab
       if (r != region[t] || l == label[t]) continue;
       const Vec3& d = directions[r][l];
       ahead.clear();
-      walk_line(tets, normals, t, centre[t], d, [&](std::int32_t u) {
+      s.walk_from(t, d, [&](std::int32_t u) {
         if (region[u] == r && label[u] == l &&
             std::find(ahead.begin(), ahead.end(), part[u]) == ahead.end())
           ahead.push_back(part[u]);
         return true;
       });
       if (ahead.empty()) continue;
-      walk_line(tets, normals, t, centre[t], -d, [&](std::int32_t u) {
+      s.walk_from(t, -d, [&](std::int32_t u) {
         if (region[u] == r && label[u] == l &&
             std::find(ahead.begin(), ahead.end(), part[u]) != ahead.end())
           sandwiching[t] = part[u];
@@ -506,12 +575,11 @@ void polish(Parts& s, std::vector<std::int32_t>& label, std::int32_t max_rounds)
       for (std::int32_t t : g) {
         std::vector<std::int32_t> tail[2];
         for (int side = 0; side < 2; ++side)
-          walk_line(s.tets, s.normals, t, s.centre[t], side == 0 ? dq : Vec3(-dq),
-                    [&](std::int32_t u) {
-                      if (s.owner[u] != q) return false;
-                      tail[side].push_back(u);
-                      return true;
-                    });
+          s.walk_from(t, side == 0 ? dq : Vec3(-dq), [&](std::int32_t u) {
+            if (s.owner[u] != q) return false;
+            tail[side].push_back(u);
+            return true;
+          });
         const int shorter = tail[0].size() <= tail[1].size() ? 0 : 1;
         for (std::int32_t u : tail[shorter])
           if (!in_move[u] && s.may_join(u, p)) in_move[u] = 1, move.push_back(u);
@@ -592,7 +660,7 @@ Parts make_state(const TetMesh& tets, const FaceNormals& normals,
                  const std::vector<std::int32_t>& region,
                  const std::vector<std::vector<Vec3>>& directions, const TetAllowsLabel& allows) {
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
-  Parts s{tets, normals, region, directions, allows, {}, {}, {}, {}, {}, {}, 0.0};
+  Parts s{tets, normals, region, directions, allows, {}, {}, {}, {}, {}, {}, 0.0, {}, 0};
   s.centre.resize(n);
   s.volume.resize(n);
   for (std::int32_t t = 0; t < n; ++t) {
@@ -714,6 +782,7 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
   check_labeling(tets, label, region, directions);
   const FaceNormals normals = face_normals(tets);
   Parts s = make_state(tets, normals, region, directions, allows);
+  s.prepare_lines(label);
   const std::vector<std::int32_t> initial = label;
   SandwichRepair repair;
   Sandwiches best = count_sandwiched(s, label);
@@ -724,6 +793,7 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
     // and the parts settle again along the directions now used.
     repair.redirected_parts = redirect_parts(s, label);
     if (repair.redirected_parts > 0) {
+      s.prepare_lines(label);
       best = count_sandwiched(s, label);
       settle_and_polish(s, label, opts, best, repair);
     }
