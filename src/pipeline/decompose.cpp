@@ -144,8 +144,8 @@ std::vector<std::size_t> rank_candidates(const std::vector<RepairedCandidate>& r
 std::int32_t count_labels(std::vector<std::int32_t> label) {
   std::sort(label.begin(), label.end());
   label.erase(std::unique(label.begin(), label.end()), label.end());
-  return static_cast<std::int32_t>(std::count_if(label.begin(), label.end(),
-                                                 [](std::int32_t l) { return l >= 0; }));
+  return static_cast<std::int32_t>(
+      std::count_if(label.begin(), label.end(), [](std::int32_t l) { return l >= 0; }));
 }
 
 // What the parts stage makes of one labeling.
@@ -215,17 +215,24 @@ struct Way {
   std::vector<Vec3> points;  // inside the blocking parts, about a tet apart along each stretch
 };
 
-Way blocked_way(const PartsStage& stage, std::int32_t p, const Vec3& dir,
-                const std::vector<bool>& blocked, double tet_size) {
-  Way way{0, p, dir, {}};
-  for (const Obstruction& o : obstructions(stage.parts, p, dir, stage.assembly_tolerance_mm)) {
-    if (!blocked[o.part]) continue;
-    ++way.stretches;
-    const int steps = std::clamp(static_cast<int>((o.to - o.from).norm() / tet_size), 1, 64);
-    for (int i = 0; i < steps; ++i)
-      way.points.push_back(o.from + (i + 0.5) / steps * (o.to - o.from));
+// Part p's ways out along each of `dirs`.
+std::vector<Way> blocked_ways(const PartsStage& stage, std::int32_t p,
+                              const std::vector<Vec3>& dirs, const std::vector<bool>& blocked,
+                              double tet_size) {
+  const std::vector<std::vector<Obstruction>> found =
+      obstructions(stage.parts, p, dirs, stage.assembly_tolerance_mm);
+  std::vector<Way> ways;
+  for (std::size_t k = 0; k < dirs.size(); ++k) {
+    Way& way = ways.emplace_back(Way{0, p, dirs[k], {}});
+    for (const Obstruction& o : found[k]) {
+      if (!blocked[o.part]) continue;
+      ++way.stretches;
+      const int steps = std::clamp(static_cast<int>((o.to - o.from).norm() / tet_size), 1, 64);
+      for (int i = 0; i < steps; ++i)
+        way.points.push_back(o.from + (i + 0.5) / steps * (o.to - o.from));
+    }
   }
-  return way;
+  return ways;
 }
 
 // Which parts a plan leaves blocked.
@@ -293,7 +300,8 @@ bool clear_ways(const PartsContext& c, const std::vector<std::int32_t>& region, 
           return std::binary_search(q.tets.begin(), q.tets.end(), tet);
         });
         if (same == tried.parts.end() ||
-            blocked_way(tried, same->id, way.dir, blocked_parts(tried.assembly), c.tet_size)
+            blocked_ways(tried, same->id, {way.dir}, blocked_parts(tried.assembly), c.tet_size)
+                    .front()
                     .stretches >= way.stretches)
           continue;
       }
@@ -312,16 +320,14 @@ bool clear_ways(const PartsContext& c, const std::vector<std::int32_t>& region, 
   };
   for (int round = 0; round < kMaxWayClearings && !stage.assembly.found; ++round) {
     const std::vector<bool> blocked = blocked_parts(stage.assembly);
-    auto blocked_ways = [&](bool own) {
+    auto ways_to_clear = [&](bool own) {
       std::vector<Way> ways;
       for (std::int32_t p = 0; p < static_cast<std::int32_t>(stage.parts.size()); ++p) {
         if (!blocked[p] || stage.parts[p].region != 0) continue;
-        std::vector<Way> part_ways;
         const Vec3 d = stage.parts[p].direction;
-        for (const Vec3& dir : own ? std::vector<Vec3>{d, -d} : c.sphere) {
-          Way way = blocked_way(stage, p, dir, blocked, c.tet_size);
-          if (way.stretches > 0) part_ways.push_back(std::move(way));
-        }
+        std::vector<Way> part_ways =
+            blocked_ways(stage, p, own ? std::vector<Vec3>{d, -d} : c.sphere, blocked, c.tet_size);
+        std::erase_if(part_ways, [](const Way& way) { return way.stretches == 0; });
         // Over the sphere, the part's best few.
         std::stable_sort(part_ways.begin(), part_ways.end(),
                          [](const Way& a, const Way& b) { return a.stretches < b.stretches; });
@@ -332,8 +338,8 @@ bool clear_ways(const PartsContext& c, const std::vector<std::int32_t>& region, 
     };
     // With `sphere`, the stage given has been through the +-d ways already.
     const bool own_tried = sphere && round == 0;
-    if (!(!own_tried && clear_one(blocked_ways(true))) &&
-        !(sphere && clear_one(blocked_ways(false))))
+    if (!(!own_tried && clear_one(ways_to_clear(true))) &&
+        !(sphere && clear_one(ways_to_clear(false))))
       break;
   }
   return !out.clearings.empty();
@@ -465,8 +471,8 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   t0 = Clock::now();
   d.directions = fibonacci_directions(opts.directions);
   report("accessibility", 0.0);
-  d.access = compute_accessibility(
-      solid, d.tets, d.directions, opts.access, inner("accessibility"));
+  d.access =
+      compute_accessibility(solid, d.tets, d.directions, opts.access, inner("accessibility"));
   report("accessibility", 1.0);
   d.timings.accessibility = seconds_since(t0);
 
@@ -475,8 +481,8 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   report("segmentation", 0.0);
   // The candidates' repair below takes longer than finding them: half the progress each.
   const auto segmentation_progress = inner("segmentation");
-  d.labeling = segment(d.tets, d.access, opts.segment,
-                       [&](double f) { segmentation_progress(0.5 * f); });
+  d.labeling =
+      segment(d.tets, d.access, opts.segment, [&](double f) { segmentation_progress(0.5 * f); });
   const std::size_t num_tets = d.tets.tets.size();
   std::vector<std::vector<Vec3>> region_directions{d.directions};
 
@@ -493,9 +499,9 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
     for (std::int32_t t : component) info.volume_mm3 += tet_volume(d.tets, t);
 
     const TetMesh sub = sub_mesh(d.tets, component);
-    const std::vector<Part> shell = extract_parts(
-        sub, std::vector<std::int32_t>(sub.tets.size(), 0),
-        std::vector<std::int32_t>(sub.tets.size(), 0), {{Vec3::UnitZ()}});
+    const std::vector<Part> shell =
+        extract_parts(sub, std::vector<std::int32_t>(sub.tets.size(), 0),
+                      std::vector<std::int32_t>(sub.tets.size(), 0), {{Vec3::UnitZ()}});
     const AccessibilityField sub_field =
         compute_accessibility(shell.at(0).mesh, sub, d.directions, opts.access);
     const Labeling sub_labeling = segment(sub, sub_field, opts.segment);
