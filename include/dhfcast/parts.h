@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -130,11 +131,17 @@ using TetAllowsLabel =
 // Deterministic: the result does not depend on the thread count.
 // Pre: tets has adjacency; label/region as for extract_parts(). Throws Error{InvalidOptions}
 // when opts.validate() does, Error{Internal} on mismatched sizes.
+// `lines`, when given, keeps the lines it walks through `tets` for the next call on the same
+// tets (the candidate labelings of one decomposition): the result is the same either way.
+class TetLines;
 SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int32_t>& label,
                                       const std::vector<std::int32_t>& region,
                                       const std::vector<std::vector<Vec3>>& directions,
                                       const TetAllowsLabel& allows,
-                                      const SandwichOptions& opts = {});
+                                      const SandwichOptions& opts = {}, TetLines* lines = nullptr);
+// Lines through `tets` for absorb_sandwiched_tets(), shared between calls (from any thread); it
+// refers to `tets`, which must outlive it.
+std::shared_ptr<TetLines> make_tet_lines(const TetMesh& tets);
 
 // Clears the way out of a part along `dir` at the label level, where plan_assembly() found it
 // blocked: the part P is the face-connected component of equal (region, label) holding tet

@@ -1,12 +1,14 @@
 // Label-level DHF repair (paper §4.3.1, "infeasible volume"): tets of one part that lie between
 // two pieces of another part along that part's direction go to that part.
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <string>
 #include <tuple>
@@ -76,19 +78,24 @@ class LineTable {
  public:
   LineTable(const TetMesh& tets, const FaceNormals& normals, const std::vector<Vec3>& centre,
             const Vec3& d) {
+    // Each chunk of tets walks into its own buffer, joined in chunk order after.
+    constexpr std::int32_t kChunk = 1024;
     const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
+    const std::int32_t chunks = (n + kChunk - 1) / kChunk;
+    std::vector<std::vector<std::int32_t>> visited(chunks);
     start_.assign(n + 1, 0);
-    tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
-      std::int64_t length = 0;
-      walk_line(tets, normals, t, centre[t], d, [&](std::int32_t) { return ++length, true; });
-      start_[t + 1] = length;
+    tbb::parallel_for(std::int32_t{0}, chunks, [&](std::int32_t c) {
+      for (std::int32_t t = c * kChunk; t < std::min(n, (c + 1) * kChunk); ++t) {
+        const std::size_t before = visited[c].size();
+        walk_line(tets, normals, t, centre[t], d,
+                  [&](std::int32_t u) { return visited[c].push_back(u), true; });
+        start_[t + 1] = static_cast<std::int64_t>(visited[c].size() - before);
+      }
     });
     for (std::int32_t t = 0; t < n; ++t) start_[t + 1] += start_[t];
-    tets_.resize(start_[n]);
-    tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
-      std::int32_t* out = tets_.data() + start_[t];
-      walk_line(tets, normals, t, centre[t], d, [&](std::int32_t u) { return *out++ = u, true; });
-    });
+    tets_.reserve(start_[n]);
+    for (const std::vector<std::int32_t>& v : visited)
+      tets_.insert(tets_.end(), v.begin(), v.end());
   }
   std::span<const std::int32_t> from(std::int32_t t) const {
     return {tets_.data() + start_[t], tets_.data() + start_[t + 1]};
@@ -101,8 +108,56 @@ class LineTable {
 };
 
 // Line tables take memory in proportion to the tets times the tets a line crosses: past this
-// budget for one repair, further directions are walked instead.
+// budget, further directions are walked instead.
 constexpr std::size_t kLineTableBudgetBytes = std::size_t{1} << 30;
+
+}  // namespace
+
+// The line tables of one tet mesh, by direction, made on first use.
+class TetLines {
+ public:
+  explicit TetLines(const TetMesh& tets) : tets_(tets), normals_(face_normals(tets)) {
+    centre_.resize(tets.tets.size());
+    for (std::size_t t = 0; t < tets.tets.size(); ++t) {
+      const Tet& k = tets.tets[t];
+      centre_[t] = 0.25 * (tets.vertices[k[0]] + tets.vertices[k[1]] + tets.vertices[k[2]] +
+                           tets.vertices[k[3]]);
+    }
+  }
+  const TetMesh& tets() const { return tets_; }
+  const FaceNormals& normals() const { return normals_; }
+  const std::vector<Vec3>& centres() const { return centre_; }
+
+  // The table along d, or none once the budget is spent.
+  std::shared_ptr<const LineTable> along(const Vec3& d) {
+    const std::lock_guard lock(mutex_);
+    for (const auto& [e, table] : tables_)
+      if (e == d) return table;
+    if (bytes_ > kLineTableBudgetBytes) return nullptr;
+    // Isolated: while it waits for its own loop, this thread must not take up another caller's
+    // work that would wait for the lock it holds.
+    std::shared_ptr<const LineTable> table;
+    tbb::this_task_arena::isolate(
+        [&] { table = std::make_shared<const LineTable>(tets_, normals_, centre_, d); });
+    bytes_ += table->bytes();
+    tables_.emplace_back(d, table);
+    return table;
+  }
+
+ private:
+  const TetMesh& tets_;
+  FaceNormals normals_;
+  std::vector<Vec3> centre_;
+  std::mutex mutex_;
+  std::vector<std::pair<Vec3, std::shared_ptr<const LineTable>>> tables_;
+  std::size_t bytes_ = 0;
+};
+
+std::shared_ptr<TetLines> make_tet_lines(const TetMesh& tets) {
+  return std::make_shared<TetLines>(tets);
+}
+
+namespace {
 
 // Added to a footprint's sides, so that rounding on a line that grazes one never matters.
 constexpr double kFootprintSlackMm = 1e-6;
@@ -143,8 +198,8 @@ struct Parts {
   std::vector<std::int32_t> label_of, region_of;
   std::vector<char> frozen;  // settled parts: their tets never move again
   double tet_radius = 0.0;   // the largest distance from a tet's centre to one of its vertices
+  TetLines* line_source = nullptr;
   std::vector<std::pair<Vec3, std::shared_ptr<const LineTable>>> lines;  // by direction
-  std::size_t line_bytes = 0;
 
   // Tables of the lines along +-d of every direction `label` uses, within the budget. Called
   // outside parallel loops: the walks read the tables without a lock.
@@ -155,10 +210,9 @@ struct Parts {
     used.erase(std::unique(used.begin(), used.end()), used.end());
     for (const auto& [r, l] : used)
       for (const Vec3& d : {directions[r][l], Vec3(-directions[r][l])}) {
-        if (line_table(d) || line_bytes > kLineTableBudgetBytes) continue;
-        auto table = std::make_shared<const LineTable>(tets, normals, centre, d);
-        line_bytes += table->bytes();
-        lines.emplace_back(d, std::move(table));
+        if (line_table(d)) continue;
+        if (std::shared_ptr<const LineTable> table = line_source->along(d))
+          lines.emplace_back(d, std::move(table));
       }
   }
   const LineTable* line_table(const Vec3& d) const {
@@ -660,7 +714,7 @@ Parts make_state(const TetMesh& tets, const FaceNormals& normals,
                  const std::vector<std::int32_t>& region,
                  const std::vector<std::vector<Vec3>>& directions, const TetAllowsLabel& allows) {
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
-  Parts s{tets, normals, region, directions, allows, {}, {}, {}, {}, {}, {}, 0.0, {}, 0};
+  Parts s{tets, normals, region, directions, allows, {}, {}, {}, {}, {}, {}, 0.0, nullptr, {}};
   s.centre.resize(n);
   s.volume.resize(n);
   for (std::int32_t t = 0; t < n; ++t) {
@@ -776,12 +830,15 @@ void SandwichOptions::validate() const {
 SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int32_t>& label,
                                       const std::vector<std::int32_t>& region,
                                       const std::vector<std::vector<Vec3>>& directions,
-                                      const TetAllowsLabel& allows, const SandwichOptions& opts) {
+                                      const TetAllowsLabel& allows, const SandwichOptions& opts,
+                                      TetLines* lines) {
   opts.validate();
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
   check_labeling(tets, label, region, directions);
-  const FaceNormals normals = face_normals(tets);
-  Parts s = make_state(tets, normals, region, directions, allows);
+  std::shared_ptr<TetLines> own_lines;
+  if (!lines || &lines->tets() != &tets) lines = (own_lines = make_tet_lines(tets)).get();
+  Parts s = make_state(tets, lines->normals(), region, directions, allows);
+  s.line_source = lines;
   s.prepare_lines(label);
   const std::vector<std::int32_t> initial = label;
   SandwichRepair repair;

@@ -536,6 +536,7 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   std::vector<RepairedCandidate> repaired(distinct.size());
   std::mutex progress_mutex;
   std::size_t repairs_done = 0;
+  const std::shared_ptr<TetLines> lines = make_tet_lines(d.tets);
   tbb::parallel_for(std::size_t{0}, distinct.size(), [&](std::size_t i) {
     RepairedCandidate& r = repaired[i];
     r.index = distinct[i];
@@ -547,7 +548,7 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
     if (std::find(r.label.begin(), r.label.end(), -1) != r.label.end())
       throw Error(ErrorCode::Internal, "a tet region has no direction at all");
     r.repair = absorb_sandwiched_tets(d.tets, r.label, r.region, region_directions, region_allows,
-                                      opts.sandwich);
+                                      opts.sandwich, lines.get());
     const std::lock_guard lock(progress_mutex);
     segmentation_progress(0.5 + 0.5 * double(++repairs_done) / double(distinct.size()));
   });
