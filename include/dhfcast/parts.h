@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -71,7 +72,7 @@ struct SandwichRepair {
   // of one part, as a share of that part's volume (the part is not a DHF there).
   std::int32_t stuck_tets = 0;
   double worst_share = 0.0;
-  std::int32_t parts = 0;  // face-connected components of equal (region, label) in it
+  std::int32_t parts = 0;          // face-connected components of equal (region, label) in it
   double smallest_part_mm3 = 0.0;  // the volume of the smallest of them
   // Pieces a part fell into when it lost tets that went whole to a neighbour, and their tets;
   // of those, the tets the neighbour's direction does not allow (tiny pieces only).
@@ -131,11 +132,17 @@ using TetAllowsLabel =
 // Deterministic: the result does not depend on the thread count.
 // Pre: tets has adjacency; label/region as for extract_parts(). Throws Error{InvalidOptions}
 // when opts.validate() does, Error{Internal} on mismatched sizes.
+// `lines`, when given, keeps the lines it walks through `tets` for the next call on the same
+// tets (the candidate labelings of one decomposition): the result is the same either way.
+class TetLines;
 SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int32_t>& label,
                                       const std::vector<std::int32_t>& region,
                                       const std::vector<std::vector<Vec3>>& directions,
                                       const TetAllowsLabel& allows,
-                                      const SandwichOptions& opts = {});
+                                      const SandwichOptions& opts = {}, TetLines* lines = nullptr);
+// Lines through `tets` for absorb_sandwiched_tets(), shared between calls (from any thread); it
+// refers to `tets`, which must outlive it.
+std::shared_ptr<TetLines> make_tet_lines(const TetMesh& tets);
 
 // Clears the way out of a part along `dir` at the label level, where plan_assembly() found it
 // blocked: the part P is the face-connected component of equal (region, label) holding tet
@@ -304,7 +311,7 @@ struct AssemblyPlan {
   std::vector<Vec3> removal;
   // blocks[i] lists the parts that part i would run into when it leaves along removal[i].
   std::vector<std::vector<std::int32_t>> blocks;
-  std::string message;  // when !found: which parts block each other
+  std::string message;       // when !found: which parts block each other
   std::int32_t blocked = 0;  // parts left blocked (0 when found)
 };
 
@@ -338,6 +345,10 @@ struct Obstruction {
 // samples, rays and tolerance): every such stretch of every sample's way, in the samples' order.
 std::vector<Obstruction> obstructions(const std::vector<Part>& parts, std::int32_t p,
                                       const Vec3& dir, double tolerance_mm);
+// The same along each of `dirs`: the parts' scene and samples are made once for all of them.
+std::vector<std::vector<Obstruction>> obstructions(const std::vector<Part>& parts, std::int32_t p,
+                                                   const std::vector<Vec3>& dirs,
+                                                   double tolerance_mm);
 
 // A stretch of a line along a part's direction between two of the part's intervals.
 struct DhfGap {

@@ -1,11 +1,15 @@
 // Label-level DHF repair (paper §4.3.1, "infeasible volume"): tets of one part that lie between
 // two pieces of another part along that part's direction go to that part.
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <map>
+#include <memory>
+#include <mutex>
+#include <span>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -67,6 +71,94 @@ void walk_line(const TetMesh& tets, const FaceNormals& normals, std::int32_t t, 
   }
 }
 
+// The tets walk_line() visits from every tet's centre along one direction, in order. They do not
+// depend on the labeling, and the repair walks the same lines round after round: read from here,
+// a walk is a scan of an array instead of a face test per step.
+class LineTable {
+ public:
+  LineTable(const TetMesh& tets, const FaceNormals& normals, const std::vector<Vec3>& centre,
+            const Vec3& d) {
+    // Each chunk of tets walks into its own buffer, joined in chunk order after.
+    constexpr std::int32_t kChunk = 1024;
+    const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
+    const std::int32_t chunks = (n + kChunk - 1) / kChunk;
+    std::vector<std::vector<std::int32_t>> visited(chunks);
+    start_.assign(n + 1, 0);
+    tbb::parallel_for(std::int32_t{0}, chunks, [&](std::int32_t c) {
+      for (std::int32_t t = c * kChunk; t < std::min(n, (c + 1) * kChunk); ++t) {
+        const std::size_t before = visited[c].size();
+        walk_line(tets, normals, t, centre[t], d,
+                  [&](std::int32_t u) { return visited[c].push_back(u), true; });
+        start_[t + 1] = static_cast<std::int64_t>(visited[c].size() - before);
+      }
+    });
+    for (std::int32_t t = 0; t < n; ++t) start_[t + 1] += start_[t];
+    tets_.reserve(start_[n]);
+    for (const std::vector<std::int32_t>& v : visited)
+      tets_.insert(tets_.end(), v.begin(), v.end());
+  }
+  std::span<const std::int32_t> from(std::int32_t t) const {
+    return {tets_.data() + start_[t], tets_.data() + start_[t + 1]};
+  }
+  std::size_t bytes() const { return 8 * start_.size() + 4 * tets_.size(); }
+
+ private:
+  std::vector<std::int64_t> start_;
+  std::vector<std::int32_t> tets_;
+};
+
+// Line tables take memory in proportion to the tets times the tets a line crosses: past this
+// budget, further directions are walked instead.
+constexpr std::size_t kLineTableBudgetBytes = std::size_t{1} << 30;
+
+}  // namespace
+
+// The line tables of one tet mesh, by direction, made on first use.
+class TetLines {
+ public:
+  explicit TetLines(const TetMesh& tets) : tets_(tets), normals_(face_normals(tets)) {
+    centre_.resize(tets.tets.size());
+    for (std::size_t t = 0; t < tets.tets.size(); ++t) {
+      const Tet& k = tets.tets[t];
+      centre_[t] = 0.25 * (tets.vertices[k[0]] + tets.vertices[k[1]] + tets.vertices[k[2]] +
+                           tets.vertices[k[3]]);
+    }
+  }
+  const TetMesh& tets() const { return tets_; }
+  const FaceNormals& normals() const { return normals_; }
+  const std::vector<Vec3>& centres() const { return centre_; }
+
+  // The table along d, or none once the budget is spent.
+  std::shared_ptr<const LineTable> along(const Vec3& d) {
+    const std::lock_guard lock(mutex_);
+    for (const auto& [e, table] : tables_)
+      if (e == d) return table;
+    if (bytes_ > kLineTableBudgetBytes) return nullptr;
+    // Isolated: while it waits for its own loop, this thread must not take up another caller's
+    // work that would wait for the lock it holds.
+    std::shared_ptr<const LineTable> table;
+    tbb::this_task_arena::isolate(
+        [&] { table = std::make_shared<const LineTable>(tets_, normals_, centre_, d); });
+    bytes_ += table->bytes();
+    tables_.emplace_back(d, table);
+    return table;
+  }
+
+ private:
+  const TetMesh& tets_;
+  FaceNormals normals_;
+  std::vector<Vec3> centre_;
+  std::mutex mutex_;
+  std::vector<std::pair<Vec3, std::shared_ptr<const LineTable>>> tables_;
+  std::size_t bytes_ = 0;
+};
+
+std::shared_ptr<TetLines> make_tet_lines(const TetMesh& tets) {
+  return std::make_shared<TetLines>(tets);
+}
+
+namespace {
+
 // Added to a footprint's sides, so that rounding on a line that grazes one never matters.
 constexpr double kFootprintSlackMm = 1e-6;
 
@@ -106,6 +198,39 @@ struct Parts {
   std::vector<std::int32_t> label_of, region_of;
   std::vector<char> frozen;  // settled parts: their tets never move again
   double tet_radius = 0.0;   // the largest distance from a tet's centre to one of its vertices
+  TetLines* line_source = nullptr;
+  std::vector<std::pair<Vec3, std::shared_ptr<const LineTable>>> lines;  // by direction
+
+  // Tables of the lines along +-d of every direction `label` uses, within the budget. Called
+  // outside parallel loops: the walks read the tables without a lock.
+  void prepare_lines(const std::vector<std::int32_t>& label) {
+    std::vector<std::pair<std::int32_t, std::int32_t>> used;
+    for (std::size_t t = 0; t < label.size(); ++t) used.emplace_back(region[t], label[t]);
+    std::sort(used.begin(), used.end());
+    used.erase(std::unique(used.begin(), used.end()), used.end());
+    for (const auto& [r, l] : used)
+      for (const Vec3& d : {directions[r][l], Vec3(-directions[r][l])}) {
+        if (line_table(d)) continue;
+        if (std::shared_ptr<const LineTable> table = line_source->along(d))
+          lines.emplace_back(d, std::move(table));
+      }
+  }
+  const LineTable* line_table(const Vec3& d) const {
+    for (const auto& [e, table] : lines)
+      if (e == d) return table.get();
+    return nullptr;
+  }
+  // Calls visit(u) for the tets walk_line() visits from t's centre along d, until visit returns
+  // false.
+  template <class Visit>
+  void walk_from(std::int32_t t, const Vec3& d, Visit&& visit) const {
+    if (const LineTable* table = line_table(d)) {
+      for (std::int32_t u : table->from(t))
+        if (!visit(u)) return;
+      return;
+    }
+    walk_line(tets, normals, t, centre[t], d, visit);
+  }
 
   std::int32_t size() const { return static_cast<std::int32_t>(label_of.size()); }
 
@@ -131,7 +256,7 @@ struct Parts {
   template <class In, class Passable>
   bool blocked_gap(std::int32_t t, const Vec3& d, In&& in, Passable&& passable) const {
     bool blocked = false, found = false;
-    walk_line(tets, normals, t, centre[t], d, [&](std::int32_t u) {
+    walk_from(t, d, [&](std::int32_t u) {
       if (in(u)) {
         found = blocked;
         return !found;
@@ -147,7 +272,7 @@ struct Parts {
   template <class In, class Passable>
   bool reaches(std::int32_t t, const Vec3& d, In&& in, Passable&& passable) const {
     bool found = false;
-    walk_line(tets, normals, t, centre[t], d, [&](std::int32_t u) {
+    walk_from(t, d, [&](std::int32_t u) {
       if (in(u)) {
         found = true;
         return false;
@@ -353,10 +478,8 @@ struct Sandwiches {
 Sandwiches count_sandwiched(const Parts& s, const std::vector<std::int32_t>& label,
                             std::vector<std::int32_t>* within_part = nullptr) {
   const TetMesh& tets = s.tets;
-  const FaceNormals& normals = s.normals;
   const std::vector<std::int32_t>& region = s.region;
   const std::vector<std::vector<Vec3>>& directions = s.directions;
-  const std::vector<Vec3>& centre = s.centre;
   const std::vector<double>& volume = s.volume;
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
   Sandwiches out;
@@ -373,14 +496,14 @@ Sandwiches count_sandwiched(const Parts& s, const std::vector<std::int32_t>& lab
       if (r != region[t] || l == label[t]) continue;
       const Vec3& d = directions[r][l];
       ahead.clear();
-      walk_line(tets, normals, t, centre[t], d, [&](std::int32_t u) {
+      s.walk_from(t, d, [&](std::int32_t u) {
         if (region[u] == r && label[u] == l &&
             std::find(ahead.begin(), ahead.end(), part[u]) == ahead.end())
           ahead.push_back(part[u]);
         return true;
       });
       if (ahead.empty()) continue;
-      walk_line(tets, normals, t, centre[t], -d, [&](std::int32_t u) {
+      s.walk_from(t, -d, [&](std::int32_t u) {
         if (region[u] == r && label[u] == l &&
             std::find(ahead.begin(), ahead.end(), part[u]) != ahead.end())
           sandwiching[t] = part[u];
@@ -506,12 +629,11 @@ void polish(Parts& s, std::vector<std::int32_t>& label, std::int32_t max_rounds)
       for (std::int32_t t : g) {
         std::vector<std::int32_t> tail[2];
         for (int side = 0; side < 2; ++side)
-          walk_line(s.tets, s.normals, t, s.centre[t], side == 0 ? dq : Vec3(-dq),
-                    [&](std::int32_t u) {
-                      if (s.owner[u] != q) return false;
-                      tail[side].push_back(u);
-                      return true;
-                    });
+          s.walk_from(t, side == 0 ? dq : Vec3(-dq), [&](std::int32_t u) {
+            if (s.owner[u] != q) return false;
+            tail[side].push_back(u);
+            return true;
+          });
         const int shorter = tail[0].size() <= tail[1].size() ? 0 : 1;
         for (std::int32_t u : tail[shorter])
           if (!in_move[u] && s.may_join(u, p)) in_move[u] = 1, move.push_back(u);
@@ -592,7 +714,7 @@ Parts make_state(const TetMesh& tets, const FaceNormals& normals,
                  const std::vector<std::int32_t>& region,
                  const std::vector<std::vector<Vec3>>& directions, const TetAllowsLabel& allows) {
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
-  Parts s{tets, normals, region, directions, allows, {}, {}, {}, {}, {}, {}, 0.0};
+  Parts s{tets, normals, region, directions, allows, {}, {}, {}, {}, {}, {}, 0.0, nullptr, {}};
   s.centre.resize(n);
   s.volume.resize(n);
   for (std::int32_t t = 0; t < n; ++t) {
@@ -708,12 +830,16 @@ void SandwichOptions::validate() const {
 SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int32_t>& label,
                                       const std::vector<std::int32_t>& region,
                                       const std::vector<std::vector<Vec3>>& directions,
-                                      const TetAllowsLabel& allows, const SandwichOptions& opts) {
+                                      const TetAllowsLabel& allows, const SandwichOptions& opts,
+                                      TetLines* lines) {
   opts.validate();
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
   check_labeling(tets, label, region, directions);
-  const FaceNormals normals = face_normals(tets);
-  Parts s = make_state(tets, normals, region, directions, allows);
+  std::shared_ptr<TetLines> own_lines;
+  if (!lines || &lines->tets() != &tets) lines = (own_lines = make_tet_lines(tets)).get();
+  Parts s = make_state(tets, lines->normals(), region, directions, allows);
+  s.line_source = lines;
+  s.prepare_lines(label);
   const std::vector<std::int32_t> initial = label;
   SandwichRepair repair;
   Sandwiches best = count_sandwiched(s, label);
@@ -724,6 +850,7 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
     // and the parts settle again along the directions now used.
     repair.redirected_parts = redirect_parts(s, label);
     if (repair.redirected_parts > 0) {
+      s.prepare_lines(label);
       best = count_sandwiched(s, label);
       settle_and_polish(s, label, opts, best, repair);
     }

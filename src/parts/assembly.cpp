@@ -378,13 +378,22 @@ AssemblyPlan plan_assembly(const std::vector<Part>& parts,
   return plan;
 }
 
-std::vector<Obstruction> obstructions(const std::vector<Part>& parts, std::int32_t p,
-                                      const Vec3& dir, double tolerance_mm) {
+std::vector<std::vector<Obstruction>> obstructions(const std::vector<Part>& parts, std::int32_t p,
+                                                   const std::vector<Vec3>& dirs,
+                                                   double tolerance_mm) {
   if (!(tolerance_mm >= 0.0) || !std::isfinite(tolerance_mm))
     throw Error(ErrorCode::InvalidOptions, "assembly tolerance_mm must be >= 0");
   if (p < 0 || p >= static_cast<std::int32_t>(parts.size()))
     throw Error(ErrorCode::Internal, "parts: no part " + std::to_string(p));
-  return Collisions(parts, tolerance_mm).obstructions(p, dir);
+  const Collisions collisions(parts, tolerance_mm);
+  std::vector<std::vector<Obstruction>> out;
+  for (const Vec3& dir : dirs) out.push_back(collisions.obstructions(p, dir));
+  return out;
+}
+
+std::vector<Obstruction> obstructions(const std::vector<Part>& parts, std::int32_t p,
+                                      const Vec3& dir, double tolerance_mm) {
+  return std::move(obstructions(parts, p, std::vector<Vec3>{dir}, tolerance_mm).front());
 }
 
 namespace {
@@ -426,7 +435,7 @@ void line_gaps(const PartScene& scene, std::int32_t p, const Vec3& origin, const
   scene.crossings(origin, dir, hits, crossings);
   // The part's intervals along the line; repeated hits on a shared edge count once.
   bool inside = false;
-  double left = -INFINITY;  // where the line last left the part
+  double left = -INFINITY;               // where the line last left the part
   double began = -INFINITY;              // where the line last entered it
   std::int32_t below = -1;               // the part the line was in just before that
   const Crossing* last_other = nullptr;  // the last crossing of another part's boundary

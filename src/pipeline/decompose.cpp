@@ -224,17 +224,24 @@ struct Way {
   std::vector<Vec3> points;  // inside the blocking parts, about a tet apart along each stretch
 };
 
-Way blocked_way(const PartsStage& stage, std::int32_t p, const Vec3& dir,
-                const std::vector<bool>& blocked, double tet_size) {
-  Way way{0, p, dir, {}};
-  for (const Obstruction& o : obstructions(stage.parts, p, dir, stage.assembly_tolerance_mm)) {
-    if (!blocked[o.part]) continue;
-    ++way.stretches;
-    const int steps = std::clamp(static_cast<int>((o.to - o.from).norm() / tet_size), 1, 64);
-    for (int i = 0; i < steps; ++i)
-      way.points.push_back(o.from + (i + 0.5) / steps * (o.to - o.from));
+// Part p's ways out along each of `dirs`.
+std::vector<Way> blocked_ways(const PartsStage& stage, std::int32_t p,
+                              const std::vector<Vec3>& dirs, const std::vector<bool>& blocked,
+                              double tet_size) {
+  const std::vector<std::vector<Obstruction>> found =
+      obstructions(stage.parts, p, dirs, stage.assembly_tolerance_mm);
+  std::vector<Way> ways;
+  for (std::size_t k = 0; k < dirs.size(); ++k) {
+    Way& way = ways.emplace_back(Way{0, p, dirs[k], {}});
+    for (const Obstruction& o : found[k]) {
+      if (!blocked[o.part]) continue;
+      ++way.stretches;
+      const int steps = std::clamp(static_cast<int>((o.to - o.from).norm() / tet_size), 1, 64);
+      for (int i = 0; i < steps; ++i)
+        way.points.push_back(o.from + (i + 0.5) / steps * (o.to - o.from));
+    }
   }
-  return way;
+  return ways;
 }
 
 // Which parts a plan leaves blocked.
@@ -302,7 +309,8 @@ bool clear_ways(const PartsContext& c, const std::vector<std::int32_t>& region, 
           return std::binary_search(q.tets.begin(), q.tets.end(), tet);
         });
         if (same == tried.parts.end() ||
-            blocked_way(tried, same->id, way.dir, blocked_parts(tried.assembly), c.tet_size)
+            blocked_ways(tried, same->id, {way.dir}, blocked_parts(tried.assembly), c.tet_size)
+                    .front()
                     .stretches >= way.stretches)
           continue;
       }
@@ -321,16 +329,14 @@ bool clear_ways(const PartsContext& c, const std::vector<std::int32_t>& region, 
   };
   for (int round = 0; round < kMaxWayClearings && !stage.assembly.found; ++round) {
     const std::vector<bool> blocked = blocked_parts(stage.assembly);
-    auto blocked_ways = [&](bool own) {
+    auto ways_to_clear = [&](bool own) {
       std::vector<Way> ways;
       for (std::int32_t p = 0; p < static_cast<std::int32_t>(stage.parts.size()); ++p) {
         if (!blocked[p] || stage.parts[p].region != 0) continue;
-        std::vector<Way> part_ways;
         const Vec3 d = stage.parts[p].direction;
-        for (const Vec3& dir : own ? std::vector<Vec3>{d, -d} : c.sphere) {
-          Way way = blocked_way(stage, p, dir, blocked, c.tet_size);
-          if (way.stretches > 0) part_ways.push_back(std::move(way));
-        }
+        std::vector<Way> part_ways =
+            blocked_ways(stage, p, own ? std::vector<Vec3>{d, -d} : c.sphere, blocked, c.tet_size);
+        std::erase_if(part_ways, [](const Way& way) { return way.stretches == 0; });
         // Over the sphere, the part's best few.
         std::stable_sort(part_ways.begin(), part_ways.end(),
                          [](const Way& a, const Way& b) { return a.stretches < b.stretches; });
@@ -341,8 +347,8 @@ bool clear_ways(const PartsContext& c, const std::vector<std::int32_t>& region, 
     };
     // With `sphere`, the stage given has been through the +-d ways already.
     const bool own_tried = sphere && round == 0;
-    if (!(!own_tried && clear_one(blocked_ways(true))) &&
-        !(sphere && clear_one(blocked_ways(false))))
+    if (!(!own_tried && clear_one(ways_to_clear(true))) &&
+        !(sphere && clear_one(ways_to_clear(false))))
       break;
   }
   return !out.clearings.empty();
@@ -541,6 +547,7 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   std::vector<RepairedCandidate> repaired(distinct.size());
   std::mutex progress_mutex;
   std::size_t repairs_done = 0;
+  const std::shared_ptr<TetLines> lines = make_tet_lines(d.tets);
   tbb::parallel_for(std::size_t{0}, distinct.size(), [&](std::size_t i) {
     RepairedCandidate& r = repaired[i];
     r.index = distinct[i];
@@ -552,7 +559,7 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
     if (std::find(r.label.begin(), r.label.end(), -1) != r.label.end())
       throw Error(ErrorCode::Internal, "a tet region has no direction at all");
     r.repair = absorb_sandwiched_tets(d.tets, r.label, r.region, region_directions, region_allows,
-                                      opts.sandwich);
+                                      opts.sandwich, lines.get());
     const std::lock_guard lock(progress_mutex);
     segmentation_progress(0.5 + 0.5 * double(++repairs_done) / double(distinct.size()));
   });
