@@ -242,7 +242,7 @@ TEST(Tetrahedralize, SharpEdgesCloserThanTheTetSizeEndTheMesher) {
   const std::string path = test::cgal_mesh("mpi_triang.off");
   if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
   try {
-    const TetMesh tets = tetrahedralize(load_solid(path).mesh, {.target_tets = 1000});
+    const TetMesh tets = tetrahedralize(load_solid(path).mesh, {.target_tets = 100});
     ADD_FAILURE() << "meshed into " << tets.tets.size() << " tets";
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::TetrahedralizationFailed) << e.what();
@@ -290,7 +290,7 @@ TEST(Tetrahedralize, FiftyMetreSphereStopsAtTheVertexBudget) {
   EXPECT_LE(tets.tets.size(), 8000u);
   expect_valid_tets(tets);
   try {
-    tetrahedralize(icosphere(25000.0, 3), {.target_tets = 1000});
+    tetrahedralize(icosphere(25000.0, 3), {.target_tets = 100});
     ADD_FAILURE() << "a 50 m sphere meshed at 0.1 mm";
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::TetrahedralizationFailed) << e.what();

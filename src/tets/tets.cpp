@@ -26,9 +26,12 @@ constexpr double kInitialSizeFactor = 1.45;
 // Lower bound on the measured count-vs-edge exponent: a boundary-bound count still falls.
 constexpr double kMinExponent = 1.0;
 // A run stops at this many vertices per target tet (a mesh has about one vertex per 5 to 6
-// tets, so its tets stay within about 10 times the target): a mesh that would grow further
-// (feature edges too close together to protect, say) ends the stage instead of the memory.
-constexpr double kMaxVerticesPerTargetTet = 2.0;
+// tets, so its tets stay within about 100 times the target): a mesh that would grow further
+// (feature edges too close together to protect, a model metres across at a boundary distance in
+// mm) ends the stage instead of the memory. Where the boundary distance sets the size, a mesh
+// has several times the target (the shared elephant at 8000 tets: over 2 vertices per target
+// tet).
+constexpr double kMaxVerticesPerTargetTet = 20.0;
 
 // Sizes for tets of edge `edge_mm`: a regular tet's circumradius is edge * sqrt(6) / 4, a
 // boundary triangle's edge / sqrt(3).
