@@ -305,19 +305,29 @@ struct Parts {
     const auto in_x = [&](std::int32_t w) {
       return (owner[w] == x ? 1 : 0) | ((moves[w] ? to : owner[w]) == x ? 2 : 0);
     };
+    // x's tets' centres lie within [lo, hi] along d in both states. A walk enters each tet at a
+    // point within tet_radius of its centre, and goes on only further along its direction: once
+    // a centre lies more than twice that beyond x's range, no tet of x follows.
+    double lo = INFINITY, hi = -INFINITY;
+    for (std::int32_t t = 0; t < n; ++t)
+      if (in_x(t)) lo = std::min(lo, centre[t].dot(d)), hi = std::max(hi, centre[t].dot(d));
+    const double beyond = 2.0 * tet_radius + kFootprintSlackMm;
     std::vector<char> out(n, 0);
     tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
       if (region[t] != region_of[x] || !box.contains(centre[t], grow)) return;
       const int outside = 3 & ~in_x(t);
       if (!outside) return;
-      // The states in `outside` in which the line from t along e meets x.
-      const auto meets = [&](const Vec3& e) {
+      // The states in `outside` in which the line from t along sign * d meets x.
+      const auto meets = [&](double sign) {
+        const double last = sign > 0 ? hi + beyond : -(lo - beyond);
         int seen = 0;
-        walk_from(t, e, [&](std::int32_t u) { return (seen |= in_x(u) & outside) != outside; });
+        walk_from(t, sign * d, [&](std::int32_t u) {
+          return (seen |= in_x(u) & outside) != outside && sign * centre[u].dot(d) <= last;
+        });
         return seen;
       };
-      const int ahead = meets(d);
-      out[t] = static_cast<char>(ahead ? ahead & meets(-d) : 0);
+      const int ahead = meets(1.0);
+      out[t] = static_cast<char>(ahead ? ahead & meets(-1.0) : 0);
     });
     std::pair<std::int32_t, std::int32_t> count{0, 0};
     for (const char o : out) count.first += o & 1, count.second += (o >> 1) & 1;
