@@ -282,27 +282,56 @@ struct Parts {
     return found;
   }
 
-  // Tets not in part p that lie between two of its tets along its direction, among those whose
-  // line along it passes near `piece`'s tets (the only ones that moving the piece can change).
-  std::int32_t count_sandwiched_by(std::int32_t p, const std::vector<std::int32_t>& piece) const {
+  // Tets not in part x that lie between two of its tets along its direction, among those whose
+  // line along it passes near `piece`'s tets (the only ones that moving the piece can change):
+  // as the parts are, and once the tets of `piece` belong to part `to`. One walk per line
+  // answers both.
+  std::pair<std::int32_t, std::int32_t> count_sandwiched_by(std::int32_t x,
+                                                            const std::vector<std::int32_t>& piece,
+                                                            std::int32_t to) const {
     const std::int32_t n = static_cast<std::int32_t>(owner.size());
-    const Vec3 d = direction(p);
+    const Vec3 d = direction(x);
     // The piece's footprint across d, grown by its largest tet's size.
     Footprint box(d);
     double grow = 0.0;
+    std::vector<char> moves(n, 0);
     for (std::int32_t t : piece) {
       box.add(tets, t);
+      moves[t] = 1;
       for (std::int32_t i : tets.tets[t])
         grow = std::max(grow, (tets.vertices[i] - centre[t]).norm());
     }
-    const auto in = [&](std::int32_t w) { return owner[w] == p; };
-    const auto any = [](std::int32_t) { return true; };
+    // Bit 1: in x as the parts are; bit 2: in x once the piece has moved.
+    const auto in_x = [&](std::int32_t w) {
+      return (owner[w] == x ? 1 : 0) | ((moves[w] ? to : owner[w]) == x ? 2 : 0);
+    };
+    // x's tets' centres lie within [lo, hi] along d in both states. A walk enters each tet at a
+    // point within tet_radius of its centre, and goes on only further along its direction: once
+    // a centre lies more than twice that beyond x's range, no tet of x follows.
+    double lo = INFINITY, hi = -INFINITY;
+    for (std::int32_t t = 0; t < n; ++t)
+      if (in_x(t)) lo = std::min(lo, centre[t].dot(d)), hi = std::max(hi, centre[t].dot(d));
+    const double beyond = 2.0 * tet_radius + kFootprintSlackMm;
     std::vector<char> out(n, 0);
     tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
-      if (owner[t] == p || region[t] != region_of[p] || !box.contains(centre[t], grow)) return;
-      out[t] = reaches(t, d, in, any) && reaches(t, -d, in, any);
+      if (region[t] != region_of[x] || !box.contains(centre[t], grow)) return;
+      const int outside = 3 & ~in_x(t);
+      if (!outside) return;
+      // The states in `outside` in which the line from t along sign * d meets x.
+      const auto meets = [&](double sign) {
+        const double last = sign > 0 ? hi + beyond : -(lo - beyond);
+        int seen = 0;
+        walk_from(t, sign * d, [&](std::int32_t u) {
+          return (seen |= in_x(u) & outside) != outside && sign * centre[u].dot(d) <= last;
+        });
+        return seen;
+      };
+      const int ahead = meets(1.0);
+      out[t] = static_cast<char>(ahead ? ahead & meets(-1.0) : 0);
     });
-    return static_cast<std::int32_t>(std::count(out.begin(), out.end(), char{1}));
+    std::pair<std::int32_t, std::int32_t> count{0, 0};
+    for (const char o : out) count.first += o & 1, count.second += (o >> 1) & 1;
+    return count;
   }
 };
 
@@ -346,10 +375,12 @@ bool give_away(Parts& s, const std::vector<std::int32_t>& piece, bool force) {
   }
   std::sort(fitting.begin(), fitting.end());
   for (const auto& [settled, negative_area, q] : fitting) {
-    const std::int32_t before = settled ? s.count_sandwiched_by(q, piece) : 0;
+    if (settled) {
+      const auto [before, after] = s.count_sandwiched_by(q, piece, q);
+      if (after > before) continue;
+    }
     for (std::int32_t t : piece) s.owner[t] = q;
-    if (!settled || s.count_sandwiched_by(q, piece) <= before) return true;
-    for (std::int32_t t : piece) s.owner[t] = from;
+    return true;
   }
   if (!force || any.empty()) return false;
   const std::int32_t q = std::get<2>(*std::min_element(any.begin(), any.end()));
@@ -431,11 +462,12 @@ std::int32_t settle(Parts& s, std::int32_t p, std::int32_t max_rounds) {
     for (std::int32_t t = 0; t < n; ++t)
       if (joined[t] && s.frozen[s.owner[t]]) taken[s.owner[t]].push_back(t);
     for (auto& [q, ts] : taken) {
-      const std::int32_t before = s.count_sandwiched_by(q, ts);
-      for (std::int32_t t : ts) s.owner[t] = p;
-      const bool worse = s.count_sandwiched_by(q, ts) > before;
+      const auto [before, after] = s.count_sandwiched_by(q, ts, p);
       for (std::int32_t t : ts) {
-        if (worse) s.owner[t] = q, banned[t] = 1, joined[t] = 0;
+        if (after > before)
+          banned[t] = 1, joined[t] = 0;
+        else
+          s.owner[t] = p;
       }
     }
     bool moved = false;
@@ -638,10 +670,10 @@ void polish(Parts& s, std::vector<std::int32_t>& label, std::int32_t max_rounds)
         for (std::int32_t u : tail[shorter])
           if (!in_move[u] && s.may_join(u, p)) in_move[u] = 1, move.push_back(u);
       }
-      const std::int32_t before = s.count_sandwiched_by(q, move) + s.count_sandwiched_by(p, move);
+      const auto [before_q, after_q] = s.count_sandwiched_by(q, move, p);
+      const auto [before_p, after_p] = s.count_sandwiched_by(p, move, p);
       for (std::int32_t t : move) s.owner[t] = p;
-      const std::int32_t after = s.count_sandwiched_by(q, move) + s.count_sandwiched_by(p, move);
-      if (after < before && connected(s, q) && connected(s, p)) {
+      if (after_q + after_p < before_q + before_p && connected(s, q) && connected(s, p)) {
         for (std::int32_t t : move) label[t] = s.label_of[p];
         moved = true;
       } else {
