@@ -250,6 +250,21 @@ TEST(Tetrahedralize, SharpEdgesCloserThanTheTetSizeEndTheMesher) {
   }
 }
 
+// At a larger target the same edges never reach the vertex budget: the protection loops without
+// adding vertices. The run's time budget stops it (here 2 s; by default 60 s + 2 ms per tet).
+TEST(Tetrahedralize, MesherThatLoopsStopsAtItsTimeBudget) {
+  const std::string path = test::cgal_mesh("mpi_triang.off");
+  if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
+  try {
+    const TetMesh tets =
+        tetrahedralize(load_solid(path).mesh, {.target_tets = 5000, .max_mesher_seconds = 2.0});
+    ADD_FAILURE() << "meshed into " << tets.tets.size() << " tets";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::TetrahedralizationFailed) << e.what();
+    EXPECT_NE(std::string(e.what()).find("ran for over 2 s"), std::string::npos) << e.what();
+  }
+}
+
 // An icosphere: the icosahedron's faces split `levels` times, vertices pushed to the sphere.
 TriMesh icosphere(double radius_mm, int levels) {
   const double g = (1.0 + std::sqrt(5.0)) / 2.0;

@@ -13,6 +13,9 @@ struct TetOptions {
                                      // or above when facet_distance_mm needs more boundary tets)
   double facet_distance_mm = 0.1;    // max distance of boundary facets from the input surface
   std::uint32_t seed = 1;            // the mesher's random seed (deterministic output)
+  // A meshing run that takes longer is stopped with an error (a runaway, not a result that
+  // depends on the machine's speed). 0: 60 s plus 2 ms per target tet.
+  double max_mesher_seconds = 0.0;
 
   // Throws Error{InvalidOptions} naming the first option out of range.
   void validate() const;

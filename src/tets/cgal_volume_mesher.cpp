@@ -19,9 +19,14 @@
 #include <CGAL/make_mesh_3.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 #include <unordered_map>
 
 #include "dhfcast/error.h"
@@ -101,7 +106,8 @@ VolumeMesher::VolumeMesher(const TriMesh& surface, std::uint32_t seed) : impl_(n
 
 VolumeMesher::~VolumeMesher() = default;
 
-RefineResult VolumeMesher::refine(const MeshSizes& sizes, std::size_t max_vertices) {
+RefineResult VolumeMesher::refine(const MeshSizes& sizes, std::size_t max_vertices,
+                                  double max_seconds) {
   namespace params = CGAL::parameters;
   // Both generators the mesher draws from restart at the seed, so every run is reproducible.
   impl_->rng = CGAL::Random(impl_->seed);
@@ -112,20 +118,56 @@ RefineResult VolumeMesher::refine(const MeshSizes& sizes, std::size_t max_vertic
       params::facet_size = sizes.facet_size_mm, params::facet_distance = sizes.facet_distance_mm,
       params::cell_radius_edge_ratio = kCellRadiusEdgeRatio,
       params::cell_size = sizes.cell_size_mm);
-  // Mesh_3 has no callback: its own checks of a vertex budget and of a stop flag end a run.
+  // Mesh_3 has no callback: its own checks of a vertex budget and of a stop flag end a run. A
+  // watchdog raises the flag on request_stop() or at the time budget (feature protection can
+  // loop without adding vertices: CGAL's mpi_triang.off, sharp edges 1 um apart).
   CGAL::Mesh_error_code stopped = CGAL::CGAL_MESH_3_NO_ERROR;
+  std::atomic<bool> halt{false};
+  bool timed_out = false;
+  std::mutex mutex;
+  std::condition_variable finished;
+  bool done = false;
+  std::thread watchdog([&] {
+    const auto deadline = std::chrono::steady_clock::now() +
+                          std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                              std::chrono::duration<double>(max_seconds));
+    std::unique_lock lock(mutex);
+    while (!done) {
+      if (stop_flag().load()) {
+        halt = true;
+        return;
+      }
+      if (std::chrono::steady_clock::now() >= deadline) {
+        timed_out = true;
+        halt = true;
+        return;
+      }
+      finished.wait_for(lock, std::chrono::milliseconds(50));
+    }
+  });
+  const auto stop_watchdog = [&] {
+    {
+      const std::lock_guard lock(mutex);
+      done = true;
+    }
+    finished.notify_all();
+    watchdog.join();
+  };
   try {
     impl_->c3t3 = CGAL::make_mesh_3<Complex>(
         *impl_->domain, criteria, params::no_perturb(), params::no_exude(),
         params::mesh_3_options(params::maximal_number_of_vertices = max_vertices,
                                params::pointer_to_error_code = &stopped,
-                               params::pointer_to_stop_atomic_boolean = &stop_flag()));
+                               params::pointer_to_stop_atomic_boolean = &halt));
   } catch (const CGAL::Failure_exception& e) {
+    stop_watchdog();
     throw mesher_error("Mesh_3", e);
   }
+  stop_watchdog();
   if (stopped == CGAL::CGAL_MESH_3_STOPPED) throw_if_stop_requested();
   return {.tets = static_cast<std::int64_t>(impl_->c3t3.number_of_cells_in_complex()),
-          .capped = stopped == CGAL::CGAL_MESH_3_MAXIMAL_NUMBER_OF_VERTICES_REACHED};
+          .capped = stopped == CGAL::CGAL_MESH_3_MAXIMAL_NUMBER_OF_VERTICES_REACHED,
+          .timed_out = stopped == CGAL::CGAL_MESH_3_STOPPED && timed_out};
 }
 
 void VolumeMesher::exude() {

@@ -32,6 +32,10 @@ constexpr double kMinExponent = 1.0;
 // has several times the target (the shared elephant at 8000 tets: over 2 vertices per target
 // tet).
 constexpr double kMaxVerticesPerTargetTet = 20.0;
+// A run stops after this long (plus this much per target tet): Mesh_3 takes seconds for 50 000
+// tets, so this is a runaway's guard, not a limit an ordinary model meets on a slow machine.
+constexpr double kMesherSeconds = 60.0;
+constexpr double kMesherSecondsPerTargetTet = 0.002;
 
 // Sizes for tets of edge `edge_mm`: a regular tet's circumradius is edge * sqrt(6) / 4, a
 // boundary triangle's edge / sqrt(3).
@@ -103,6 +107,8 @@ std::vector<Vec3> boundary_samples(const TetMesh& mesh) {
 }  // namespace
 
 void TetOptions::validate() const {
+  require_option(std::isfinite(max_mesher_seconds) && max_mesher_seconds >= 0,
+                 "tets max_mesher_seconds must be >= 0");
   require_option(target_tets >= 100 && target_tets <= 5'000'000,
                  "--tets must be between 100 and 5000000");
   require_option(std::isfinite(facet_distance_mm) && facet_distance_mm > 0,
@@ -127,9 +133,22 @@ TetMesh tetrahedralize(const TriMesh& surface, const TetOptions& opts) {
   double exponent = 3.0;
   double last_log_edge = 0.0, last_log_count = 0.0;
   const auto max_vertices = static_cast<std::size_t>(kMaxVerticesPerTargetTet * target);
+  const double max_seconds = opts.max_mesher_seconds > 0.0
+                                 ? opts.max_mesher_seconds
+                                 : kMesherSeconds + kMesherSecondsPerTargetTet * target;
   for (int run = 0; run < kMaxRuns; ++run) {
-    const auto [count, capped] =
-        mesher.refine(sizes_for_edge(edge_mm, opts.facet_distance_mm), max_vertices);
+    const auto [count, capped, timed_out] =
+        mesher.refine(sizes_for_edge(edge_mm, opts.facet_distance_mm), max_vertices, max_seconds);
+    if (timed_out) {
+      char seconds[32];
+      std::snprintf(seconds, sizeof seconds, "%.0f", max_seconds);
+      throw Error(ErrorCode::TetrahedralizationFailed,
+                  std::string("tets: the volume mesher ran for over ") + seconds +
+                      " s for --tets " + std::to_string(opts.target_tets) +
+                      " and was stopped (features of the model too small or too close together "
+                      "to mesh, such as sharp edges almost touching; try a larger "
+                      "--facet-distance)");
+    }
     if (capped && run + 1 == kMaxRuns) {
       // The boundary's distance bound is in mm: on a model metres across it asks for millions
       // of boundary facets.

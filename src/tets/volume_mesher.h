@@ -18,8 +18,9 @@ struct MeshSizes {
 
 // What one meshing run made.
 struct RefineResult {
-  std::int64_t tets = 0;  // tets in the complex
-  bool capped = false;    // the run stopped at its vertex budget: the mesh is unfinished
+  std::int64_t tets = 0;   // tets in the complex
+  bool capped = false;     // the run stopped at its vertex budget: the mesh is unfinished
+  bool timed_out = false;  // the run stopped at its time budget: the mesh is unfinished
 };
 
 // Owns the meshing domain (built once from the input surface) and the last mesh made from it,
@@ -33,9 +34,9 @@ class VolumeMesher {
   VolumeMesher& operator=(const VolumeMesher&) = delete;
 
   // Meshes the volume afresh with these sizes (the same seed every time), stopping when the
-  // triangulation reaches `max_vertices` (feature protection included). Throws Error{Stopped}
-  // when request_stop() is called meanwhile.
-  RefineResult refine(const MeshSizes& sizes, std::size_t max_vertices);
+  // triangulation reaches `max_vertices` (feature protection included) or after `max_seconds`.
+  // Throws Error{Stopped} when request_stop() is called meanwhile.
+  RefineResult refine(const MeshSizes& sizes, std::size_t max_vertices, double max_seconds);
   // Removes slivers from the last mesh (sliver exudation, deterministic: no time limit).
   void exude();
   // The last mesh's tets in the complex, vertices compactly numbered. Orientation as CGAL gives it.
