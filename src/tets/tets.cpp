@@ -127,6 +127,8 @@ TetMesh tetrahedralize(const TriMesh& surface, const TetOptions& opts) {
   // Tets of mean volume V / N are regular tets of edge cbrt(6 sqrt(2) V / N).
   const double target = static_cast<double>(opts.target_tets);
   double edge_mm = kInitialSizeFactor * std::cbrt(6.0 * std::sqrt(2.0) * volume_mm3 / target);
+  const Box3 box = bounding_box(surface.vertices);
+  const double size_mm = (box.max - box.min).maxCoeff();  // for the messages below
   detail::VolumeMesher mesher(surface, opts.seed);
   // The count falls like edge^-3 inside but slower where the boundary (facet distance) sets the
   // size: after two runs, the exponent is measured instead (secant on log count vs log edge).
@@ -152,8 +154,6 @@ TetMesh tetrahedralize(const TriMesh& surface, const TetOptions& opts) {
     if (capped && run + 1 == kMaxRuns) {
       // The boundary's distance bound is in mm: on a model metres across it asks for millions
       // of boundary facets.
-      const double size_mm =
-          (bounding_box(surface.vertices).max - bounding_box(surface.vertices).min).maxCoeff();
       throw Error(
           ErrorCode::TetrahedralizationFailed,
           "tets: the volume mesher went past " + std::to_string(max_vertices) +
@@ -199,8 +199,6 @@ TetMesh tetrahedralize(const TriMesh& surface, const TetOptions& opts) {
   if (components != 1) {
     // The input is one solid (load_solid() checks its shells), so thin parts were lost: most
     // often because the model is tiny in mm, its units wrong.
-    const Box3 box = bounding_box(surface.vertices);
-    const double size_mm = (box.max - box.min).maxCoeff();
     char size[32];
     std::snprintf(size, sizeof size, "%.3g", size_mm);
     throw Error(ErrorCode::TetrahedralizationFailed,
