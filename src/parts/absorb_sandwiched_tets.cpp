@@ -107,6 +107,17 @@ class LineTable {
   std::vector<std::int32_t> tets_;
 };
 
+// Each tet's centre (the mean of its vertices): where the repair's lines start.
+std::vector<Vec3> tet_centres(const TetMesh& tets) {
+  std::vector<Vec3> centre(tets.tets.size());
+  for (std::size_t t = 0; t < tets.tets.size(); ++t) {
+    const Tet& k = tets.tets[t];
+    centre[t] = 0.25 * (tets.vertices[k[0]] + tets.vertices[k[1]] + tets.vertices[k[2]] +
+                        tets.vertices[k[3]]);
+  }
+  return centre;
+}
+
 // Line tables take memory in proportion to the tets times the tets a line crosses: past this
 // budget, further directions are walked instead.
 constexpr std::size_t kLineTableBudgetBytes = std::size_t{1} << 30;
@@ -116,14 +127,8 @@ constexpr std::size_t kLineTableBudgetBytes = std::size_t{1} << 30;
 // The line tables of one tet mesh, by direction, made on first use.
 class TetLines {
  public:
-  explicit TetLines(const TetMesh& tets) : tets_(tets), normals_(face_normals(tets)) {
-    centre_.resize(tets.tets.size());
-    for (std::size_t t = 0; t < tets.tets.size(); ++t) {
-      const Tet& k = tets.tets[t];
-      centre_[t] = 0.25 * (tets.vertices[k[0]] + tets.vertices[k[1]] + tets.vertices[k[2]] +
-                           tets.vertices[k[3]]);
-    }
-  }
+  explicit TetLines(const TetMesh& tets)
+      : tets_(tets), normals_(face_normals(tets)), centre_(tet_centres(tets)) {}
   const TetMesh& tets() const { return tets_; }
   const FaceNormals& normals() const { return normals_; }
   const std::vector<Vec3>& centres() const { return centre_; }
@@ -747,14 +752,11 @@ Parts make_state(const TetMesh& tets, const FaceNormals& normals,
                  const std::vector<std::vector<Vec3>>& directions, const TetAllowsLabel& allows) {
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
   Parts s{tets, normals, region, directions, allows, {}, {}, {}, {}, {}, {}, 0.0, nullptr, {}};
-  s.centre.resize(n);
+  s.centre = tet_centres(tets);
   s.volume.resize(n);
   for (std::int32_t t = 0; t < n; ++t) {
-    const Tet& k = tets.tets[t];
-    s.centre[t] = 0.25 * (tets.vertices[k[0]] + tets.vertices[k[1]] + tets.vertices[k[2]] +
-                          tets.vertices[k[3]]);
     s.volume[t] = tet_volume(tets, t);
-    for (std::int32_t i : k)
+    for (std::int32_t i : tets.tets[t])
       s.tet_radius = std::max(s.tet_radius, (tets.vertices[i] - s.centre[t]).norm());
   }
   return s;
