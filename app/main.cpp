@@ -317,11 +317,11 @@ int main(int argc, char** argv) {
   dec->add_option("--lambda", o.segment.lambda, "Label cost weight")->capture_default_str();
   dec->add_option("--restarts", o.segment.restarts, "Randomized graph-cut runs")
       ->capture_default_str();
-  dec->add_option("--candidates", o.candidates,
+  dec->add_option("--candidates", o.refine.candidates,
                   "Candidate labelings repaired; the one closest to double height fields is kept")
       ->capture_default_str();
   dec->add_option("--seed", o.segment.seed, "Random seed")->capture_default_str();
-  dec->add_option("--smoothing", o.smoothing.iterations,
+  dec->add_option("--smoothing", o.refine.smoothing.iterations,
                   "Interface smoothing steps (0: keep the tet faces)")
       ->capture_default_str();
   bool tet_surface = false;
@@ -438,8 +438,8 @@ int main(int argc, char** argv) {
     if (dec->parsed()) {
       o.tets.seed = o.segment.seed;
       o.make_molds = !no_molds;
-      o.exact_outer_surface = !tet_surface;
-      o.carve = !no_carve;
+      o.refine.exact_outer_surface = !tet_surface;
+      o.refine.carve = !no_carve;
       return run_decompose(cli);
     }
     if (mld->parsed()) return run_molds(mold_outdir, mold_opts, mold_threads, mold_quiet);

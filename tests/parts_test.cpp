@@ -182,7 +182,7 @@ const Vec3 kX = Vec3::UnitX(), kY = Vec3::UnitY(), kZ = Vec3::UnitZ();
 TEST(ExtractParts, TwoHalvesOfABoxAreTwoClosedOutwardParts) {
   const Grid g = make_grid(4, 2, 2, 10.0);
   const auto label = per_cell(g, [](const Cell& c) { return c[0] < 2 ? 0 : 1; });
-  const auto parts = extract_parts(g.mesh, label, zeros(g), {{-kX, 3.0 * kX}});
+  const auto parts = extract_parts(g.mesh, label, zeros(g), {-kX, 3.0 * kX});
   ASSERT_EQ(parts.size(), 2u);
   expect_valid_parts(g, parts);
   // Equal volumes: the part holding tet 0 (label 0, x < 20) comes first.
@@ -210,7 +210,7 @@ TEST(TinyParts, PartsUnderATenthOfAPercentOfTheVolumeAreNamed) {
 TEST(ExtractParts, LargerPartComesFirst) {
   const Grid g = make_grid(3, 1, 1, 5.0);
   const auto label = per_cell(g, [](const Cell& c) { return c[0] == 0 ? 0 : 1; });
-  const auto parts = extract_parts(g.mesh, label, zeros(g), {{kZ, kZ}});
+  const auto parts = extract_parts(g.mesh, label, zeros(g), {kZ, kZ});
   ASSERT_EQ(parts.size(), 2u);
   expect_valid_parts(g, parts);
   EXPECT_EQ(parts[0].direction_index, 1);
@@ -235,7 +235,7 @@ TEST(ExtractParts, PartTouchingItselfAlongAnEdgeIsManifold) {
     if ((x == 2 && z == 1) || (x == 1 && z == 2)) return 1;
     return (x == 3 || z == 0) ? 2 : 0;
   });
-  const auto parts = extract_parts(g.mesh, label, zeros(g), {{kZ, kZ, kZ}});
+  const auto parts = extract_parts(g.mesh, label, zeros(g), {kZ, kZ, kZ});
   ASSERT_EQ(parts.size(), 4u);  // label 1 is two cubes that share an edge only
   expect_valid_parts(g, parts);
   const Part& ring = parts[1];
@@ -257,7 +257,7 @@ TEST(ExtractParts, PartTouchingItselfAtAVertexIsManifold) {
   const Grid g = make_grid(2, 2, 2, 1.0);
   const auto label =
       per_cell(g, [](const Cell& c) { return (c[0] == c[1] && c[1] == c[2]) ? 0 : 1; });
-  const auto parts = extract_parts(g.mesh, label, zeros(g), {{kZ, kZ}});
+  const auto parts = extract_parts(g.mesh, label, zeros(g), {kZ, kZ});
   ASSERT_EQ(parts.size(), 3u);
   expect_valid_parts(g, parts);
   ASSERT_EQ(parts[0].direction_index, 1);
@@ -274,7 +274,7 @@ TEST(ExtractParts, PartPinchedAlongAnEdgeBetweenConnectedEndsIsManifold) {
   // them). The part is a solid torus whose surface runs twice along that edge.
   const Grid g = make_grid(2, 2, 3, 1.0);
   const auto label = per_cell(g, [](const Cell& c) { return (c[2] == 1 && c[0] != c[1]) ? 1 : 0; });
-  const auto parts = extract_parts(g.mesh, label, zeros(g), {{kZ, kZ}});
+  const auto parts = extract_parts(g.mesh, label, zeros(g), {kZ, kZ});
   ASSERT_EQ(parts.size(), 3u);  // the two removed cubes share an edge only
   expect_valid_parts(g, parts);
   const TriMesh& mesh = parts[0].mesh;
@@ -290,7 +290,7 @@ TEST(ExtractParts, PartPinchedAlongAnEdgeBetweenConnectedEndsIsManifold) {
 TEST(ExtractParts, SameLabelApartGivesTwoParts) {
   const Grid g = make_grid(3, 1, 1, 2.0);
   const auto label = per_cell(g, [](const Cell& c) { return c[0] == 1 ? 1 : 0; });
-  const auto parts = extract_parts(g.mesh, label, zeros(g), {{kZ, -kZ}});
+  const auto parts = extract_parts(g.mesh, label, zeros(g), {kZ, -kZ});
   ASSERT_EQ(parts.size(), 3u);
   expect_valid_parts(g, parts);
   // Equal volumes: ordered by smallest tet, i.e. by cell x.
@@ -305,19 +305,18 @@ TEST(ExtractParts, SameLabelApartGivesTwoParts) {
 TEST(ExtractParts, RegionSeparatesEqualLabels) {
   const Grid g = make_grid(2, 1, 1, 2.0);
   const auto region = per_cell(g, [](const Cell& c) { return c[0]; });
-  const auto parts = extract_parts(g.mesh, zeros(g), region, {{kZ}, {kY}});
+  const auto parts = extract_parts(g.mesh, zeros(g), region, {kZ});
   ASSERT_EQ(parts.size(), 2u);
   expect_valid_parts(g, parts);
   EXPECT_EQ(parts[0].region, 0);
-  EXPECT_EQ(parts[0].direction, kZ);
   EXPECT_EQ(parts[1].region, 1);
-  EXPECT_EQ(parts[1].direction, kY);
+  EXPECT_EQ(parts[1].direction, kZ);
   EXPECT_EQ(parts[1].direction_index, 0);
 }
 
 TEST(ExtractParts, MissingDirectionThrows) {
   const Grid g = make_grid(1, 1, 1, 1.0);
-  EXPECT_THROW(extract_parts(g.mesh, zeros(g), zeros(g), {{}}), Error);
+  EXPECT_THROW(extract_parts(g.mesh, zeros(g), zeros(g), {}), Error);
 }
 
 // Pseudo-random labels per tet: parts touch themselves and each other along edges and at
@@ -335,12 +334,12 @@ std::vector<std::int32_t> scrambled_labels(std::size_t n, int num_labels, std::u
 TEST(ExtractParts, ScrambledLabelsGiveClosedManifoldParts) {
   const Grid g = make_grid(6, 6, 6, 3.0);
   const auto label = scrambled_labels(g.mesh.tets.size(), 3, 7);
-  const auto parts = extract_parts(g.mesh, label, zeros(g), {{kZ, kX, -kY}});
+  const auto parts = extract_parts(g.mesh, label, zeros(g), {kZ, kX, -kY});
   EXPECT_GT(parts.size(), 10u);
   expect_valid_parts(g, parts);
   // Same result on one thread.
   tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
-  const auto again = extract_parts(g.mesh, label, zeros(g), {{kZ, kX, -kY}});
+  const auto again = extract_parts(g.mesh, label, zeros(g), {kZ, kX, -kY});
   ASSERT_EQ(again.size(), parts.size());
   for (std::size_t p = 0; p < parts.size(); ++p) {
     EXPECT_EQ(again[p].tets, parts[p].tets);
@@ -365,11 +364,12 @@ int tongue(const Cell& c) { return c[2] >= 2 && c[2] <= 3 && c[0] <= 3 && c[1] >
 TEST(AbsorbSandwichedTets, TongueInsideAnotherPartsColumnJoinsIt) {
   const Grid g = make_grid(6, 6, 6, 10.0, 0.05);
   auto label = per_cell(g, tongue);
-  const std::int32_t tongue_tets = static_cast<std::int32_t>(std::count(label.begin(), label.end(), 1));
+  const std::int32_t tongue_tets =
+      static_cast<std::int32_t>(std::count(label.begin(), label.end(), 1));
   ASSERT_EQ(tongue_tets, 6 * 4 * 4 * 2);
   // Before: part 0 is not a double height field along its direction.
   const SandwichRepair repair =
-      absorb_sandwiched_tets(g.mesh, label, zeros(g), {{kUp, kSide}}, kAllowAll);
+      absorb_sandwiched_tets(g.mesh, label, zeros(g), {kUp, kSide}, kAllowAll);
   EXPECT_TRUE(repair.converged);
   EXPECT_EQ(repair.order, "largest first");
   EXPECT_EQ(repair.moved_tets, tongue_tets);
@@ -382,13 +382,17 @@ TEST(AbsorbSandwichedTets, TongueInsideAnotherPartsColumnJoinsIt) {
   EXPECT_EQ(repair.moves[0].from_label, 1);
   EXPECT_EQ(repair.moves[0].to_label, 0);
   EXPECT_EQ(repair.moves[0].tets, tongue_tets);
-  EXPECT_NEAR(repair.moves[0].volume_mm3, sum_tet_volumes(g.mesh, [&] {
-    std::vector<std::int32_t> ts;
-    const auto before = per_cell(g, tongue);
-    for (std::int32_t t = 0; t < static_cast<std::int32_t>(before.size()); ++t)
-      if (before[t] == 1) ts.push_back(t);
-    return ts;
-  }()), 1e-6);
+  EXPECT_NEAR(repair.moves[0].volume_mm3,
+              sum_tet_volumes(g.mesh,
+                              [&] {
+                                std::vector<std::int32_t> ts;
+                                const auto before = per_cell(g, tongue);
+                                for (std::int32_t t = 0;
+                                     t < static_cast<std::int32_t>(before.size()); ++t)
+                                  if (before[t] == 1) ts.push_back(t);
+                                return ts;
+                              }()),
+              1e-6);
   EXPECT_NEAR(repair.moved_volume_mm3, repair.moves[0].volume_mm3, 1e-9);
 }
 
@@ -399,7 +403,7 @@ TEST(AbsorbSandwichedTets, LayerThatSplitsAPartInTwoStays) {
   auto label = per_cell(g, [](const Cell& c) { return c[2] >= 2 && c[2] <= 3; });
   const auto before = label;
   const SandwichRepair repair =
-      absorb_sandwiched_tets(g.mesh, label, zeros(g), {{kUp, kSide}}, kAllowAll);
+      absorb_sandwiched_tets(g.mesh, label, zeros(g), {kUp, kSide}, kAllowAll);
   EXPECT_TRUE(repair.converged);
   EXPECT_EQ(repair.parts, 3);  // bottom, layers, top
   EXPECT_EQ(repair.moved_tets, 0);
@@ -413,7 +417,7 @@ TEST(AbsorbSandwichedTets, TetsTheDirectionDoesNotAllowStayAndAreCounted) {
   auto label = per_cell(g, tongue);
   const auto before = label;
   const SandwichRepair repair = absorb_sandwiched_tets(
-      g.mesh, label, zeros(g), {{kUp, kSide}},
+      g.mesh, label, zeros(g), {kUp, kSide},
       [&](std::int32_t t, std::int32_t, std::int32_t l) { return before[t] == l; });
   EXPECT_FALSE(repair.converged);
   EXPECT_EQ(repair.order, "segmentation");
@@ -431,7 +435,7 @@ TEST(AbsorbSandwichedTets, TetsTheDirectionDoesNotAllowStayAndAreCounted) {
 // the part keeps its own.
 TEST(AbsorbSandwichedTets, PartTakesTheDirectionThatAllowsItWhenItsOwnFallsWellShort) {
   const Grid g = make_grid(6, 6, 6, 10.0, 0.05);
-  const std::vector<std::vector<Vec3>> dirs{{kUp, kSide, Vec3(0.6, 0.5, 0.62).normalized()}};
+  const std::vector<Vec3> dirs{kUp, kSide, Vec3(0.6, 0.5, 0.62).normalized()};
   const auto cell_x = per_cell(g, [](const Cell& c) { return c[0]; });
   const auto cell_y = per_cell(g, [](const Cell& c) { return c[1]; });
   const auto start = per_cell(g, [](const Cell& c) { return c[2] < 3 ? 0 : 1; });
@@ -459,21 +463,19 @@ TEST(AbsorbSandwichedTets, OtherRegionsAndNoRoundsLeaveLabelsAlone) {
   const auto before = label;
   // The tongue is a region of its own: regions never exchange tets.
   const auto region = per_cell(g, tongue);
-  SandwichRepair repair =
-      absorb_sandwiched_tets(g.mesh, label, region, {{kUp, kSide}, {kUp, kSide}}, kAllowAll);
+  SandwichRepair repair = absorb_sandwiched_tets(g.mesh, label, region, {kUp, kSide}, kAllowAll);
   EXPECT_EQ(repair.moved_tets, 0);
   EXPECT_EQ(label, before);
   // max_rounds = 0 only counts.
   SandwichOptions count_only;
   count_only.max_rounds = 0;
-  repair = absorb_sandwiched_tets(g.mesh, label, zeros(g), {{kUp, kSide}}, kAllowAll, count_only);
+  repair = absorb_sandwiched_tets(g.mesh, label, zeros(g), {kUp, kSide}, kAllowAll, count_only);
   EXPECT_FALSE(repair.converged);
   EXPECT_EQ(repair.moved_tets, 0);
   EXPECT_EQ(repair.stuck_tets, 6 * 4 * 4 * 2);
   EXPECT_EQ(label, before);
   count_only.max_rounds = -1;
-  EXPECT_THROW(absorb_sandwiched_tets(g.mesh, label, zeros(g), {{kUp, kSide}}, kAllowAll,
-                                      count_only),
+  EXPECT_THROW(absorb_sandwiched_tets(g.mesh, label, zeros(g), {kUp, kSide}, kAllowAll, count_only),
                Error);
 }
 
@@ -487,7 +489,7 @@ TEST(AbsorbSandwichedTets, ScrambledLabelsEndWithoutSandwichesOnAnyThreadCount) 
     return blocks[((c[2] / 2) * 4 + c[1] / 2) * 4 + c[0] / 2];
   };
   auto label = per_cell(g, block_label);
-  const std::vector<std::vector<Vec3>> dirs{{kUp, kSide, Vec3(0.02, -1.0, 0.05).normalized()}};
+  const std::vector<Vec3> dirs{kUp, kSide, Vec3(0.02, -1.0, 0.05).normalized()};
   const auto start = label;
   const SandwichRepair repair = absorb_sandwiched_tets(g.mesh, label, zeros(g), dirs, kAllowAll);
   EXPECT_GT(repair.moved_tets, 0);
@@ -529,7 +531,8 @@ TEST(AbsorbSandwichedTets, ScrambledLabelsEndWithoutSandwichesOnAnyThreadCount) 
 
   tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
   auto again = start;
-  const SandwichRepair repair_one = absorb_sandwiched_tets(g.mesh, again, zeros(g), dirs, kAllowAll);
+  const SandwichRepair repair_one =
+      absorb_sandwiched_tets(g.mesh, again, zeros(g), dirs, kAllowAll);
   EXPECT_EQ(again, label);
   EXPECT_EQ(repair_one.moved_tets, repair.moved_tets);
 }
@@ -540,7 +543,7 @@ TEST(AbsorbSandwichedTets, ScrambledLabelsEndWithoutSandwichesOnAnyThreadCount) 
 // them.
 TEST(AbsorbSandwichedTets, TetsLeftBetweenAPartsTetsGoToItWithTheirColumnsTail) {
   const Grid g = make_grid(8, 8, 8, 5.0);
-  const std::vector<std::vector<Vec3>> dirs{{kUp, kSide, Vec3(0.02, -1.0, 0.05).normalized()}};
+  const std::vector<Vec3> dirs{kUp, kSide, Vec3(0.02, -1.0, 0.05).normalized()};
   const auto blocks = scrambled_labels(64, 3, 33);
   const auto extra = scrambled_labels(64 * 3, 3, 1033);
   const auto block_of =
@@ -586,7 +589,7 @@ std::vector<std::pair<std::int32_t, Vec3>> self_contacts(const std::vector<Part>
 // the parts are valid. Returns the repair.
 ManifoldRepair expect_repaired(const Grid& g, std::vector<std::int32_t>& label,
                                const TetAllowsLabel& allows, std::size_t num_directions) {
-  const std::vector<std::vector<Vec3>> dirs{std::vector<Vec3>(num_directions, kZ)};
+  const std::vector<Vec3> dirs(num_directions, kZ);
   const std::size_t before = extract_parts(g.mesh, label, zeros(g), dirs).size();
   const ManifoldRepair repair = make_parts_manifold(g.mesh, label, zeros(g), allows);
   EXPECT_EQ(repair.nonmanifold_vertices, 0);
@@ -607,7 +610,7 @@ TEST(MakePartsManifold, PartTouchingItselfAlongAnEdgeNoLongerDoes) {
     if ((x == 2 && z == 1) || (x == 1 && z == 2)) return 1;
     return (x == 3 || z == 0) ? 2 : 0;
   });
-  ASSERT_FALSE(self_contacts(extract_parts(g.mesh, label, zeros(g), {{kZ, kZ, kZ}})).empty());
+  ASSERT_FALSE(self_contacts(extract_parts(g.mesh, label, zeros(g), {kZ, kZ, kZ})).empty());
   // Where no direction allows a move, nothing moves, and the place is counted.
   auto stuck = label;
   const ManifoldRepair none = make_parts_manifold(
@@ -626,10 +629,9 @@ TEST(MakePartsManifold, PartTouchingItselfAtAVertexNoLongerDoesAndAllowedMovesWi
   // pinched at the block's centre, where two opposite corner cubes touch; here they have labels
   // 0 and 2.
   const Grid g = make_grid(2, 2, 2, 1.0);
-  const auto start = per_cell(g, [](const Cell& c) {
-    return (c[0] == c[1] && c[1] == c[2]) ? 2 * c[0] : 1;
-  });
-  ASSERT_FALSE(self_contacts(extract_parts(g.mesh, start, zeros(g), {{kZ, kZ, kZ}})).empty());
+  const auto start =
+      per_cell(g, [](const Cell& c) { return (c[0] == c[1] && c[1] == c[2]) ? 2 * c[0] : 1; });
+  ASSERT_FALSE(self_contacts(extract_parts(g.mesh, start, zeros(g), {kZ, kZ, kZ})).empty());
   // Tets of the ring join a corner through the ring (the fewest that do): whichever corner's
   // label the direction allows.
   for (const std::int32_t allowed : {0, 2}) {
@@ -649,7 +651,7 @@ TEST(MakePartsManifold, ScrambledCellsEndManifoldOnAnyThreadCount) {
   const auto cells = scrambled_labels(216, 3, 5);
   const auto start =
       per_cell(g, [&](const Cell& c) { return cells[(c[2] * 6 + c[1]) * 6 + c[0]]; });
-  ASSERT_FALSE(self_contacts(extract_parts(g.mesh, start, zeros(g), {{kZ, kZ, kZ}})).empty());
+  ASSERT_FALSE(self_contacts(extract_parts(g.mesh, start, zeros(g), {kZ, kZ, kZ})).empty());
   auto label = start;
   const ManifoldRepair repair = expect_repaired(g, label, kAllowAll, 3);
   EXPECT_GT(repair.moved_tets, 0);
@@ -679,7 +681,7 @@ TEST(MakePartsManifold, BlocksOfTheElephantGiveManifoldParts) {
     label[t] = blocks[(b.z() * 64 + b.y()) * 64 + b.x()];
   }
   const std::vector<std::int32_t> region(label.size(), 0);
-  const std::vector<std::vector<Vec3>> dirs{{kX, kY, kZ}};
+  const std::vector<Vec3> dirs{kX, kY, kZ};
   const std::vector<Part> raw = extract_parts(tets, label, region, dirs);
   ASSERT_FALSE(self_contacts(raw).empty());
   const ManifoldRepair repair = make_parts_manifold(tets, label, region, kAllowAll);
@@ -697,7 +699,7 @@ TEST(MakePartsManifold, BlocksOfTheElephantGiveManifoldParts) {
 // Parts of a grid labeled per cell, with one direction per label.
 std::vector<Part> grid_parts(const Grid& g, const std::function<int(const Cell&)>& label,
                              const std::vector<Vec3>& directions) {
-  return extract_parts(g.mesh, per_cell(g, label), zeros(g), {directions});
+  return extract_parts(g.mesh, per_cell(g, label), zeros(g), directions);
 }
 
 // The part owning each cell of the grid.
@@ -999,8 +1001,8 @@ TEST(PlanAssembly, AClampedPartComesOffSidewaysAlongAnExtraDirection) {
   // Both leave along z, and each blocks the other both ways; along +x B slides off A's end.
   // Parts: B (the larger) = 0, A = 1.
   const Grid g = make_grid(3, 1, 3, 10.0);
-  const auto parts = grid_parts(
-      g, [](const Cell& c) { return c[2] == 1 && c[0] <= 1 ? 1 : 0; }, {kZ, kZ});
+  const auto parts =
+      grid_parts(g, [](const Cell& c) { return c[2] == 1 && c[0] <= 1 ? 1 : 0; }, {kZ, kZ});
   ASSERT_EQ(parts.size(), 2u);
   ASSERT_EQ(2 * parts[0].tets.size(), 7 * parts[1].tets.size());
   const AssemblyPlan stuck = plan_assembly(parts, {}, kTolerance_mm);
@@ -1020,7 +1022,7 @@ TEST(PlanAssembly, AClampedPartComesOffSidewaysAlongAnExtraDirection) {
 
 TEST(PlanAssembly, NegativeToleranceThrows) {
   const Grid g = make_grid(1, 1, 1, 1.0);
-  const auto parts = extract_parts(g.mesh, zeros(g), zeros(g), {{kZ}});
+  const auto parts = extract_parts(g.mesh, zeros(g), zeros(g), {kZ});
   EXPECT_THROW(plan_assembly(parts, {}, -1.0), Error);
 }
 
@@ -1047,8 +1049,10 @@ std::vector<std::vector<std::int32_t>> reference_blocks(const TetMesh& mesh,
       const Vec3 p = o + t * d;
       double nearest = INFINITY;
       for (const Tri& tri : m.triangles)
-        nearest = std::min(nearest, (closest_on_triangle(p, m.vertices[tri[0]], m.vertices[tri[1]],
-                                                         m.vertices[tri[2]]) - p).norm());
+        nearest = std::min(
+            nearest,
+            (closest_on_triangle(p, m.vertices[tri[0]], m.vertices[tri[1]], m.vertices[tri[2]]) - p)
+                .norm());
       if (nearest >= tolerance_mm) return true;
     }
     return false;
@@ -1163,7 +1167,7 @@ TEST(PartsRealShape, VoxelizedElephantGivesManifoldPartsAndExactBlocking) {
     if (r < 8) return r % 6;
     return (2 * c[0] >= n[0]) + 2 * (2 * c[1] >= n[1]) + 2 * (2 * c[2] >= n[2]);
   });
-  const std::vector<std::vector<Vec3>> directions = {{-kX, kX, -kY, kY, -kZ, kZ, kX, kZ}};
+  const std::vector<Vec3> directions = {-kX, kX, -kY, kY, -kZ, kZ, kX, kZ};
   const auto parts = extract_parts(g.mesh, label, zeros(g), directions);
   ASSERT_GT(parts.size(), 20u);
   expect_valid_parts(g, parts);
@@ -1183,8 +1187,9 @@ TEST(PartsRealShape, VoxelizedElephantGivesManifoldPartsAndExactBlocking) {
 }
 
 // A real tet mesh cut into three 120-degree sectors about an axis: three interfaces, a junction
-// curve where they meet and seams on the surface. Smoothing must flatten the tet-face staircase of every interface while
-// keeping the parts closed, sharing their interfaces exactly and keeping their volume.
+// curve where they meet and seams on the surface. Smoothing must flatten the tet-face staircase of
+// every interface while keeping the parts closed, sharing their interfaces exactly and keeping
+// their volume.
 TEST(SmoothInterfaces, SectorsOfTheElephantBecomeSmoothAndStayShared) {
   const std::string path = test::cgal_mesh("elephant.off");
   if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
@@ -1201,9 +1206,9 @@ TEST(SmoothInterfaces, SectorsOfTheElephantBecomeSmoothAndStayShared) {
     const double turn = std::atan2(c.z() - centre.z(), c.x() - centre.x()) / (2 * M_PI) + 0.5;
     label[t] = std::min(2, static_cast<int>(3 * turn));
   }
-  const std::vector<std::vector<Vec3>> dirs{
-      {Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitZ()}};
-  std::vector<Part> parts = extract_parts(tets, label, std::vector<std::int32_t>(label.size(), 0), dirs);
+  const std::vector<Vec3> dirs{Vec3::UnitX(), Vec3::UnitY(), Vec3::UnitZ()};
+  std::vector<Part> parts =
+      extract_parts(tets, label, std::vector<std::int32_t>(label.size(), 0), dirs);
   const std::vector<InterfaceSmoothness> raw = interface_smoothness(parts);
   double raw_volume = 0.0;
   for (const Part& p : parts) raw_volume += p.volume_mm3;
@@ -1250,10 +1255,14 @@ TEST(SmoothInterfaces, SectorsOfTheElephantBecomeSmoothAndStayShared) {
       if (p.triangle_neighbor[i] != b) continue;
       Tri t = p.mesh.triangles[i];
       if (flip) std::swap(t[1], t[2]);
-      std::rotate(t.begin(), std::min_element(t.begin(), t.end(), [&](std::int32_t x, std::int32_t y) {
-                    return std::lexicographical_compare(p.mesh.vertices[x].data(), p.mesh.vertices[x].data() + 3,
-                                                        p.mesh.vertices[y].data(), p.mesh.vertices[y].data() + 3);
-                  }), t.end());
+      std::rotate(t.begin(),
+                  std::min_element(t.begin(), t.end(),
+                                   [&](std::int32_t x, std::int32_t y) {
+                                     return std::lexicographical_compare(
+                                         p.mesh.vertices[x].data(), p.mesh.vertices[x].data() + 3,
+                                         p.mesh.vertices[y].data(), p.mesh.vertices[y].data() + 3);
+                                   }),
+                  t.end());
       std::array<double, 9> key;
       for (int c = 0; c < 3; ++c)
         for (int k = 0; k < 3; ++k) key[3 * c + k] = p.mesh.vertices[t[c]][k];
@@ -1287,7 +1296,8 @@ std::set<std::pair<std::int32_t, std::int32_t>> vertices_in_infeasible_volumes(
     for (std::size_t i = 0; i < p.mesh.triangles.size(); ++i)
       if (p.triangle_neighbor[i] < 0) {
         const Tri& t = p.mesh.triangles[i];
-        outer.push_back({p.mesh.vertices[t[0]], p.mesh.vertices[t[1]], p.mesh.vertices[t[2]], p.id});
+        outer.push_back(
+            {p.mesh.vertices[t[0]], p.mesh.vertices[t[1]], p.mesh.vertices[t[2]], p.id});
       }
   std::set<std::pair<std::int32_t, std::int32_t>> out;
   for (const Part& p : parts) {
@@ -1330,7 +1340,7 @@ TEST(SmoothInterfaces, InterfacesStayOutOfInfeasibleVolumes) {
   const Grid g = make_grid(8, 6, 6, 5.0);
   // Both parts are cast along the same direction, so their infeasible volumes are their own
   // columns, which meet without overlapping.
-  const std::vector<std::vector<Vec3>> dirs{{kUp, kUp}};
+  const std::vector<Vec3> dirs{kUp, kUp};
   const auto label = per_cell(g, [](const Cell& c) { return c[0] < 4 && c[1] < 3 ? 0 : 1; });
   const std::vector<Part> raw = extract_parts(g.mesh, label, zeros(g), dirs);
   ASSERT_EQ(raw.size(), 2u);
@@ -1340,7 +1350,8 @@ TEST(SmoothInterfaces, InterfacesStayOutOfInfeasibleVolumes) {
     std::vector<Part> parts = raw;
     SmoothingOptions opts;
     opts.project = project;
-    smooth_interfaces(g.mesh, parts, [](std::int32_t, std::int32_t) { return true; }, opts);
+    smooth_interfaces(
+        g.mesh, parts, [](std::int32_t, std::int32_t) { return true; }, opts);
     for (const Part& p : parts) EXPECT_EQ(test::solid_topology_problem(p.mesh), "");
     return vertices_in_infeasible_volumes(parts).size();
   };
@@ -1390,7 +1401,7 @@ TEST(CutPartsFromSolid, OuterSurfaceIsTheInputAndInterfacesStayShared) {
   make_parts_manifold(tets, label, std::vector<std::int32_t>(label.size(), 0),
                       [](std::int32_t, std::int32_t, std::int32_t) { return true; });
   std::vector<Part> parts = extract_parts(tets, label, std::vector<std::int32_t>(label.size(), 0),
-                                          {{Vec3::UnitX(), Vec3::UnitY()}});
+                                          {Vec3::UnitX(), Vec3::UnitY()});
   ASSERT_EQ(parts.size(), 2u);
   smooth_interfaces(tets, parts, [](std::int32_t, std::int32_t) { return true; });
 
@@ -1446,7 +1457,7 @@ TEST(CutPartsFromSolid, PartTouchingItselfAlongAnOuterEdgeDoesNotStopTheCut) {
         centre.z() > 1.0 && centre.z() < 2.0)
       label[t] = 1;
   }
-  std::vector<Part> parts = extract_parts(tets, label, zeros_like(tets), {{kX, kZ}});
+  std::vector<Part> parts = extract_parts(tets, label, zeros_like(tets), {kX, kZ});
   ASSERT_EQ(parts.size(), 2u);
   ASSERT_EQ(count_vertices_at(parts[0].mesh, Vec3(2.0, 1.5, 2.0)), 1);  // the midpoint
 
@@ -1479,7 +1490,7 @@ std::vector<Vec3> obstacle_points(const std::vector<Part>& parts, std::int32_t p
 
 TEST(ClearWay, LockedLayersComeApartOnceTheTopIsInTheMiddlePartsWay) {
   const Grid g = make_grid(3, 3, 3, 10.0);
-  const std::vector<std::vector<Vec3>> dirs{{kZ, kX}};
+  const std::vector<Vec3> dirs{kZ, kX};
   auto label = per_cell(g, locked_layers);
   const auto parts = extract_parts(g.mesh, label, zeros(g), dirs);
   ASSERT_EQ(parts.size(), 2u);
@@ -1511,7 +1522,7 @@ TEST(ClearWay, LockedLayersComeApartOnceTheTopIsInTheMiddlePartsWay) {
 
 TEST(ClearWay, MovesThatWouldSplitAPartOrThatItsDirectionForbidsAreRefused) {
   const Grid g = make_grid(3, 3, 3, 10.0);
-  const std::vector<std::vector<Vec3>> dirs{{kZ, kX}};
+  const std::vector<Vec3> dirs{kZ, kX};
   const auto start = per_cell(g, locked_layers);
   const auto parts = extract_parts(g.mesh, start, zeros(g), dirs);
   const std::int32_t p = parts[0].direction_index == 0 ? 0 : 1;
@@ -1556,7 +1567,7 @@ std::vector<DhfGap> gaps_over_two_thirds(const std::vector<Part>& parts, std::in
 
 TEST(DhfGaps, LinesThroughAPartsMouthCrossTheNeighbourBetweenItsJaws) {
   const Grid g = make_grid(4, 3, 3, 10.0);
-  const std::vector<std::vector<Vec3>> dirs{{kZ, kX}};
+  const std::vector<Vec3> dirs{kZ, kX};
   const auto parts = extract_parts(g.mesh, per_cell(g, c_around_a_tongue), zeros(g), dirs);
   ASSERT_EQ(parts.size(), 2u);
   const std::int32_t p = parts[0].direction_index == 0 ? 0 : 1, q = 1 - p;
@@ -1580,7 +1591,7 @@ TEST(DhfGaps, LinesThroughAPartsMouthCrossTheNeighbourBetweenItsJaws) {
 
 TEST(FillGaps, TheTongueBetweenThePartsJawsJoinsIt) {
   const Grid g = make_grid(4, 3, 3, 10.0);
-  const std::vector<std::vector<Vec3>> dirs{{kZ, kX}};
+  const std::vector<Vec3> dirs{kZ, kX};
   auto label = per_cell(g, c_around_a_tongue);
   const auto parts = extract_parts(g.mesh, label, zeros(g), dirs);
   const std::int32_t p = parts[0].direction_index == 0 ? 0 : 1;
@@ -1638,7 +1649,7 @@ SkinOverAir skin_over_air() {
 
 TEST(DhfGaps, ASkinOverAirSaysWhichPartItLiesOn) {
   const SkinOverAir s = skin_over_air();
-  const std::vector<std::vector<Vec3>> dirs{{kZ, kX}};
+  const std::vector<Vec3> dirs{kZ, kX};
   const auto parts = extract_parts(s.mesh, s.label, zeros_like(s.mesh), dirs);
   ASSERT_EQ(parts.size(), 2u);
   const std::int32_t p = parts[0].direction_index == 0 ? 0 : 1, q = 1 - p;
@@ -1656,7 +1667,7 @@ TEST(DhfGaps, ASkinOverAirSaysWhichPartItLiesOn) {
 
 TEST(FillGaps, ThePartUnderASkinOverAirTakesIt) {
   SkinOverAir s = skin_over_air();
-  const std::vector<std::vector<Vec3>> dirs{{kZ, kX}};
+  const std::vector<Vec3> dirs{kZ, kX};
   const auto parts = extract_parts(s.mesh, s.label, zeros_like(s.mesh), dirs);
   const std::int32_t p = parts[0].direction_index == 0 ? 0 : 1, q = 1 - p;
   std::vector<Vec3> points;  // along each skin, as the pipeline seeds them
@@ -1729,7 +1740,7 @@ void expect_sound(const std::vector<Part>& before, const std::vector<Part>& afte
 // to look for their gaps on (a 0.9 mm grid).
 std::vector<Part> tongue_parts() {
   const Grid g = make_grid(4, 5, 4, 10.0);
-  return extract_parts(g.mesh, per_cell(g, tongue_inside_the_neighbour), zeros(g), {{kZ, kX}});
+  return extract_parts(g.mesh, per_cell(g, tongue_inside_the_neighbour), zeros(g), {kZ, kX});
 }
 constexpr std::int64_t kTongueLines = 2500;
 
@@ -1776,7 +1787,7 @@ int tongue_to_the_side(const Cell& c) {
 TEST(CarveDhfGaps, WhereFillingWouldReachTheOuterSurfaceThePartTakesTheNeighboursPiece) {
   const Grid g = make_grid(4, 5, 4, 10.0);
   const std::vector<Part> before =
-      extract_parts(g.mesh, per_cell(g, tongue_to_the_side), zeros(g), {{kZ, kX}});
+      extract_parts(g.mesh, per_cell(g, tongue_to_the_side), zeros(g), {kZ, kX});
   ASSERT_EQ(before.size(), 2u);
   const std::int32_t p = before[0].direction_index == 0 ? 0 : 1, q = 1 - p;
   std::vector<Part> parts = before;
@@ -1879,7 +1890,7 @@ int rod_under_a_cap(const Cell& c) {
 TEST(CarveDhfGaps, APieceAnExchangeCutsOffGoesToThePartAroundIt) {
   const Grid g = make_grid(6, 3, 3, 10.0);
   const std::vector<Part> before =
-      extract_parts(g.mesh, per_cell(g, rod_under_a_cap), zeros(g), {{kZ, kX, kY}});
+      extract_parts(g.mesh, per_cell(g, rod_under_a_cap), zeros(g), {kZ, kX, kY});
   ASSERT_EQ(before.size(), 3u);
   std::array<std::int32_t, 3> id{};  // by label
   for (const Part& part : before) id[part.direction_index] = part.id;
@@ -1912,7 +1923,7 @@ TEST(CarveDhfGaps, APieceAnExchangeCutsOffGoesToThePartAroundIt) {
 
 TEST(CarveDhfGaps, JawsOnTheOuterSurfaceAreNotCarvedButOneGoesToThePartBetweenThem) {
   const Grid g = make_grid(4, 3, 3, 10.0);
-  const std::vector<std::vector<Vec3>> dirs{{kZ, kX}};
+  const std::vector<Vec3> dirs{kZ, kX};
   const auto before = extract_parts(g.mesh, per_cell(g, c_around_a_tongue), zeros(g), dirs);
   const std::int32_t p = before[0].direction_index == 0 ? 0 : 1, q = 1 - p;
   // Both jaws reach the outer surface: nothing can be carved.

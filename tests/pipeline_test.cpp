@@ -101,10 +101,10 @@ void expect_valid_decomposition(const TriMesh& input, const Decomposition& d,
                             .cross(input.vertices[t[2]] - input.vertices[t[0]])
                             .norm();
   // Dents that folds leave in the moved regions are filled: none is left deeper than float noise.
-  if (opts.exact_outer_surface) {
+  if (opts.refine.exact_outer_surface) {
     EXPECT_EQ(d.solid_cut.uncovered_triangles, 0);
   }
-  const bool all_cut = opts.exact_outer_surface && d.solid_cut.uncovered_triangles == 0 &&
+  const bool all_cut = opts.refine.exact_outer_surface && d.solid_cut.uncovered_triangles == 0 &&
                        std::find(d.solid_cut.part_cut.begin(), d.solid_cut.part_cut.end(), false) ==
                            d.solid_cut.part_cut.end();
   if (all_cut) {
@@ -127,7 +127,7 @@ void expect_valid_decomposition(const TriMesh& input, const Decomposition& d,
     if (d.solid_cut.filled_dents == 0) {
       EXPECT_EQ(unshared_interface_corners(d.parts), 0);
     }
-  } else if (!opts.exact_outer_surface) {
+  } else if (!opts.refine.exact_outer_surface) {
     EXPECT_NEAR(parts_volume, tet_volume, 1e-3 * tet_volume);
   }
   // The tet boundary is within boundary_tolerance_mm of the surface, so the volumes differ by
@@ -171,7 +171,7 @@ void expect_valid_decomposition(const TriMesh& input, const Decomposition& d,
     smooth_sum += s.mean_angle_deg * s.area_mm2;
     smooth_area += s.area_mm2;
   }
-  if (raw_area > 0 && opts.smoothing.iterations > 0) {
+  if (raw_area > 0 && opts.refine.smoothing.iterations > 0) {
     EXPECT_GT(smooth_area, 0.0);
     EXPECT_LT(smooth_sum / smooth_area, max_smoothed_to_raw * raw_sum / raw_area);
   }
@@ -256,9 +256,9 @@ TEST(PipelineExtended, ElephantAtPaperSize) {
   ASSERT_EQ(std::count(first.label.begin(), first.label.end(), -1), 0);  // no enclosed volume
   std::vector<std::int32_t> first_label = first.label;
   const SandwichRepair first_repair = absorb_sandwiched_tets(
-      d.tets, first_label, std::vector<std::int32_t>(first_label.size(), 0), {d.directions},
+      d.tets, first_label, std::vector<std::int32_t>(first_label.size(), 0), d.directions,
       [&](std::int32_t t, std::int32_t, std::int32_t l) { return d.access.feasible.get(t, l); },
-      opts.sandwich);
+      opts.refine.sandwich);
   EXPECT_NE(d.labeling.best_restart, first.restart);
   EXPECT_LT(d.sandwich.worst_share, 0.5 * first_repair.worst_share);
 
@@ -318,10 +318,10 @@ TEST(PipelineExtended, InfeasibleVolumeRepairMakesPartsCloserToDoubleHeightField
   if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
   const TriMesh input = test::load_scaled(path, 275.0);
   DecomposeOptions opts = fast_options();
-  opts.candidates = 1;  // the same labeling with and without
+  opts.refine.candidates = 1;  // the same labeling with and without
   DecomposeOptions without = opts;
-  without.sandwich.max_rounds = 0;
-  without.smoothing.project = false;
+  without.refine.sandwich.max_rounds = 0;
+  without.refine.smoothing.project = false;
 
   const Decomposition repaired = decompose(input, opts);
   const Decomposition raw = decompose(input, without);

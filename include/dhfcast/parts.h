@@ -17,7 +17,7 @@ constexpr std::int32_t kCarvedVoid = -2;
 // One solid part, cast in its own two-piece mold along `direction`.
 struct Part {
   std::int32_t id = 0;
-  std::int32_t direction_index = -1;  // index into the direction set of its region
+  std::int32_t direction_index = -1;  // index into the direction set
   Vec3 direction = Vec3::UnitZ();     // unit casting / assembly direction d
   std::int32_t region = 0;  // 0: the whole solid; k > 0: the k-th inaccessible region, which was
                             // decomposed again on its own
@@ -33,11 +33,11 @@ struct Part {
 // Splits the labeled tet mesh into parts: each connected component (through shared faces) of
 // tets with the same (region, label) is a part. Parts are ordered by decreasing volume, ties by
 // smallest tet index, and numbered 0.. in that order.
-// directions[region][label] is the direction of label `label` in region `region`.
+// directions[label] is the direction of label `label` (every region labels with the same set).
 // Pre: every tet has label >= 0; tets has adjacency. Throws Error{Internal} on a broken mesh.
 std::vector<Part> extract_parts(const TetMesh& tets, const std::vector<std::int32_t>& label,
                                 const std::vector<std::int32_t>& region,
-                                const std::vector<std::vector<Vec3>>& directions);
+                                const std::vector<Vec3>& directions);
 
 // Options for absorb_sandwiched_tets().
 struct SandwichOptions {
@@ -137,7 +137,7 @@ using TetAllowsLabel =
 class TetLines;
 SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int32_t>& label,
                                       const std::vector<std::int32_t>& region,
-                                      const std::vector<std::vector<Vec3>>& directions,
+                                      const std::vector<Vec3>& directions,
                                       const TetAllowsLabel& allows,
                                       const SandwichOptions& opts = {}, TetLines* lines = nullptr);
 // Lines through `tets` for absorb_sandwiched_tets(), shared between calls (from any thread); it
@@ -158,7 +158,7 @@ std::shared_ptr<TetLines> make_tet_lines(const TetMesh& tets);
 // Pre: as for absorb_sandwiched_tets().
 std::vector<std::int32_t> clear_way(const TetMesh& tets, std::vector<std::int32_t>& label,
                                     const std::vector<std::int32_t>& region,
-                                    const std::vector<std::vector<Vec3>>& directions,
+                                    const std::vector<Vec3>& directions,
                                     const TetAllowsLabel& allows, std::int32_t part_tet,
                                     const Vec3& dir, const std::vector<Vec3>& obstacle_points);
 
@@ -173,7 +173,7 @@ std::vector<std::int32_t> clear_way(const TetMesh& tets, std::vector<std::int32_
 // Pre: as for absorb_sandwiched_tets().
 std::vector<std::int32_t> fill_gaps(const TetMesh& tets, std::vector<std::int32_t>& label,
                                     const std::vector<std::int32_t>& region,
-                                    const std::vector<std::vector<Vec3>>& directions,
+                                    const std::vector<Vec3>& directions,
                                     const TetAllowsLabel& allows, std::int32_t part_tet,
                                     const std::vector<Vec3>& gap_points);
 

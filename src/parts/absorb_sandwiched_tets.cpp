@@ -195,7 +195,7 @@ struct Parts {
   const TetMesh& tets;
   const FaceNormals& normals;
   const std::vector<std::int32_t>& region;
-  const std::vector<std::vector<Vec3>>& directions;
+  const std::vector<Vec3>& directions;
   const TetAllowsLabel& allows;
   std::vector<Vec3> centre;
   std::vector<double> volume;
@@ -214,7 +214,7 @@ struct Parts {
     std::sort(used.begin(), used.end());
     used.erase(std::unique(used.begin(), used.end()), used.end());
     for (const auto& [r, l] : used)
-      for (const Vec3& d : {directions[r][l], Vec3(-directions[r][l])}) {
+      for (const Vec3& d : {directions[l], Vec3(-directions[l])}) {
         if (line_table(d)) continue;
         if (std::shared_ptr<const LineTable> table = line_source->along(d))
           lines.emplace_back(d, std::move(table));
@@ -251,7 +251,7 @@ struct Parts {
       if (label_of[owner[t]] < 0) label_of[owner[t]] = label[t], region_of[owner[t]] = region[t];
     return count;
   }
-  const Vec3& direction(std::int32_t p) const { return directions[region_of[p]][label_of[p]]; }
+  const Vec3& direction(std::int32_t p) const { return directions[label_of[p]]; }
   bool may_join(std::int32_t t, std::int32_t p) const {
     return region[t] == region_of[p] && allows(t, region_of[p], label_of[p]);
   }
@@ -516,7 +516,7 @@ Sandwiches count_sandwiched(const Parts& s, const std::vector<std::int32_t>& lab
                             std::vector<std::int32_t>* within_part = nullptr) {
   const TetMesh& tets = s.tets;
   const std::vector<std::int32_t>& region = s.region;
-  const std::vector<std::vector<Vec3>>& directions = s.directions;
+  const std::vector<Vec3>& directions = s.directions;
   const std::vector<double>& volume = s.volume;
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
   Sandwiches out;
@@ -528,10 +528,12 @@ Sandwiches count_sandwiched(const Parts& s, const std::vector<std::int32_t>& lab
   std::vector<std::int32_t> sandwiching(n, -1);  // a part tet t lies within
   tbb::parallel_for(std::int32_t{0}, n, [&](std::int32_t t) {
     std::vector<std::int32_t> ahead;
-    for (const auto& [r, l] : used) {
+    for (const auto& used_label : used) {
+      // Named copies, not a structured binding: the walks below capture them (clang 14).
+      const std::int32_t r = used_label.first, l = used_label.second;
       if (sandwiching[t] >= 0) return;
       if (r != region[t] || l == label[t]) continue;
-      const Vec3& d = directions[r][l];
+      const Vec3& d = directions[l];
       ahead.clear();
       s.walk_from(t, d, [&](std::int32_t u) {
         if (region[u] == r && label[u] == l &&
@@ -748,8 +750,8 @@ class TetLocator {
 };
 
 Parts make_state(const TetMesh& tets, const FaceNormals& normals,
-                 const std::vector<std::int32_t>& region,
-                 const std::vector<std::vector<Vec3>>& directions, const TetAllowsLabel& allows) {
+                 const std::vector<std::int32_t>& region, const std::vector<Vec3>& directions,
+                 const TetAllowsLabel& allows) {
   const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
   Parts s{tets, normals, region, directions, allows, {}, {}, {}, {}, {}, {}, 0.0, nullptr, {}};
   s.centre = tet_centres(tets);
@@ -829,7 +831,7 @@ std::int32_t redirect_parts(Parts& s, std::vector<std::int32_t>& label) {
     };
     const double own = not_allowed(s.label_of[p]);
     if (own == 0.0) continue;
-    std::vector<double> left(s.directions[r].size());
+    std::vector<double> left(s.directions.size());
     tbb::parallel_for(std::size_t{0}, left.size(),
                       [&](std::size_t l) { left[l] = not_allowed(static_cast<std::int32_t>(l)); });
     const auto best = std::min_element(left.begin(), left.end());
@@ -841,14 +843,12 @@ std::int32_t redirect_parts(Parts& s, std::vector<std::int32_t>& label) {
 }
 
 void check_labeling(const TetMesh& tets, const std::vector<std::int32_t>& label,
-                    const std::vector<std::int32_t>& region,
-                    const std::vector<std::vector<Vec3>>& directions) {
+                    const std::vector<std::int32_t>& region, const std::vector<Vec3>& directions) {
   if (tets.neighbors.size() != tets.tets.size() || label.size() != tets.tets.size() ||
       region.size() != tets.tets.size())
     throw Error(ErrorCode::Internal, "sandwich repair: one label, region and adjacency per tet");
   for (std::size_t t = 0; t < tets.tets.size(); ++t)
-    if (region[t] < 0 || static_cast<std::size_t>(region[t]) >= directions.size() || label[t] < 0 ||
-        static_cast<std::size_t>(label[t]) >= directions[region[t]].size())
+    if (region[t] < 0 || label[t] < 0 || static_cast<std::size_t>(label[t]) >= directions.size())
       throw Error(ErrorCode::Internal,
                   "sandwich repair: tet " + std::to_string(t) + " has no direction");
 }
@@ -863,7 +863,7 @@ void SandwichOptions::validate() const {
 
 SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int32_t>& label,
                                       const std::vector<std::int32_t>& region,
-                                      const std::vector<std::vector<Vec3>>& directions,
+                                      const std::vector<Vec3>& directions,
                                       const TetAllowsLabel& allows, const SandwichOptions& opts,
                                       TetLines* lines) {
   opts.validate();
@@ -922,7 +922,7 @@ namespace {
 // `ahead`, those of their parts in p's way along *ahead.
 std::vector<std::int32_t> take_over(const TetMesh& tets, std::vector<std::int32_t>& label,
                                     const std::vector<std::int32_t>& region,
-                                    const std::vector<std::vector<Vec3>>& directions,
+                                    const std::vector<Vec3>& directions,
                                     const TetAllowsLabel& allows, std::int32_t part_tet,
                                     const Vec3* ahead_dir, const std::vector<Vec3>& points,
                                     bool keep_sandwich_share) {
@@ -1054,7 +1054,7 @@ std::vector<std::int32_t> take_over(const TetMesh& tets, std::vector<std::int32_
 
 std::vector<std::int32_t> clear_way(const TetMesh& tets, std::vector<std::int32_t>& label,
                                     const std::vector<std::int32_t>& region,
-                                    const std::vector<std::vector<Vec3>>& directions,
+                                    const std::vector<Vec3>& directions,
                                     const TetAllowsLabel& allows, std::int32_t part_tet,
                                     const Vec3& dir, const std::vector<Vec3>& obstacle_points) {
   return take_over(tets, label, region, directions, allows, part_tet, &dir, obstacle_points, true);
@@ -1062,7 +1062,7 @@ std::vector<std::int32_t> clear_way(const TetMesh& tets, std::vector<std::int32_
 
 std::vector<std::int32_t> fill_gaps(const TetMesh& tets, std::vector<std::int32_t>& label,
                                     const std::vector<std::int32_t>& region,
-                                    const std::vector<std::vector<Vec3>>& directions,
+                                    const std::vector<Vec3>& directions,
                                     const TetAllowsLabel& allows, std::int32_t part_tet,
                                     const std::vector<Vec3>& gap_points) {
   return take_over(tets, label, region, directions, allows, part_tet, nullptr, gap_points, false);

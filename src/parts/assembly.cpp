@@ -604,13 +604,14 @@ CarveLines carve_lines(const std::vector<Part>& parts, std::int32_t p, std::int6
           const double t0 = stretches[second - 1].end, t1 = stretches[last].begin;
           // The part entered where the gaps begin, which every crossing in them must be of.
           const double slack = 1e-9 * (1.0 + std::abs(t0) + std::abs(t1));
-          std::int32_t only = -1;
+          std::int32_t only = -1;  // -1: none entered yet
+          bool several = false;
           for (const Crossing& c : crossings)
             if (c.part != p && c.t_mm >= t0 - slack && c.t_mm <= t1 + slack) {
               if (only == -1 && !c.exits) only = c.part;
-              if (c.part != only && c.t_mm > t0 + slack && c.t_mm < t1 - slack) only = -2;
+              if (c.part != only && c.t_mm > t0 + slack && c.t_mm < t1 - slack) several = true;
             }
-          if (only >= 0) {
+          if (only >= 0 && !several) {
             const double reach =
                 std::min({0.25 * epsilon_mm, 0.5 * (t0 - stretches[second - 1].begin),
                           0.5 * (stretches[last].end - t1)});

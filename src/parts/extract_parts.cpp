@@ -8,9 +8,9 @@
 #include <utility>
 #include <vector>
 
+#include "components.h"
 #include "dhfcast/error.h"
 #include "dhfcast/parts.h"
-#include "components.h"
 
 namespace dhfcast {
 namespace {
@@ -71,7 +71,9 @@ void part_boundary(const TetMesh& tets, const std::vector<std::int32_t>& part_of
       if (u >= 0 && part_of[u] == p) continue;
       face_at[k * 4 + i] = static_cast<std::int32_t>(faces.size());
       const Tet& tet = tets.tets[t];
-      faces.push_back({t, i, {tet[kTetFaces[i][0]], tet[kTetFaces[i][1]], tet[kTetFaces[i][2]]},
+      faces.push_back({t,
+                       i,
+                       {tet[kTetFaces[i][0]], tet[kTetFaces[i][1]], tet[kTetFaces[i][2]]},
                        u < 0 ? -1 : part_of[u]});
     }
   }
@@ -205,19 +207,19 @@ void part_boundary(const TetMesh& tets, const std::vector<std::int32_t>& part_of
 
 std::vector<Part> extract_parts(const TetMesh& tets, const std::vector<std::int32_t>& label,
                                 const std::vector<std::int32_t>& region,
-                                const std::vector<std::vector<Vec3>>& directions) {
+                                const std::vector<Vec3>& directions) {
   const std::size_t n = tets.tets.size();
   if (tets.neighbors.size() != n) broken("the tet mesh has no adjacency");
   if (label.size() != n || region.size() != n) broken("one label and one region per tet expected");
   for (std::size_t t = 0; t < n; ++t) {
-    if (region[t] < 0 || static_cast<std::size_t>(region[t]) >= directions.size() || label[t] < 0 ||
-        static_cast<std::size_t>(label[t]) >= directions[region[t]].size())
-      broken("tet " + std::to_string(t) + " has no direction for its region and label");
+    if (region[t] < 0 || label[t] < 0 || static_cast<std::size_t>(label[t]) >= directions.size())
+      broken("tet " + std::to_string(t) + " has no direction");
   }
 
   // --- 1. components, sorted by decreasing volume, ties by smallest tet ---
   std::int32_t num_parts = 0;
-  const std::vector<std::int32_t> component = detail::label_components(tets, label, region, num_parts);
+  const std::vector<std::int32_t> component =
+      detail::label_components(tets, label, region, num_parts);
   std::vector<std::vector<std::int32_t>> members(num_parts);
   for (std::int32_t t = 0; t < static_cast<std::int32_t>(n); ++t)
     members[component[t]].push_back(t);
@@ -241,7 +243,7 @@ std::vector<Part> extract_parts(const TetMesh& tets, const std::vector<std::int3
     const std::int32_t t0 = part.tets.front();
     part.region = region[t0];
     part.direction_index = label[t0];
-    const Vec3& d = directions[part.region][part.direction_index];
+    const Vec3& d = directions[part.direction_index];
     if (!(d.norm() > 0.0)) broken("direction " + std::to_string(label[t0]) + " is zero");
     part.direction = d.normalized();
     for (const std::int32_t t : part.tets) part_of[t] = id;

@@ -134,13 +134,13 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                      {"beta_mm", opts.segment.beta_mm},
                      {"lambda", opts.segment.lambda},
                      {"restarts", opts.segment.restarts},
-                     {"candidates", opts.candidates},
-                     {"smoothing_iterations", opts.smoothing.iterations},
+                     {"candidates", opts.refine.candidates},
+                     {"smoothing_iterations", opts.refine.smoothing.iterations},
                      {"seed", opts.segment.seed},
                      {"target_tets", opts.tets.target_tets},
                      {"facet_distance_mm", opts.tets.facet_distance_mm},
-                     {"exact_outer_surface", opts.exact_outer_surface},
-                     {"carve", opts.carve}};
+                     {"exact_outer_surface", opts.refine.exact_outer_surface},
+                     {"carve", opts.refine.carve}};
   if (opts.make_molds) j["parameters"]["molds"] = mold_parameters_json(opts.molds);
   j["tetrahedra"] = d.tets.tets.size();
   j["tet_volume_mm3"] = total_volume(d.tets);
@@ -245,7 +245,7 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                           {"moved_volume_mm3", d.manifold.moved_volume_mm3},
                           {"nonmanifold_vertices", d.manifold.nonmanifold_vertices}};
 
-  if (opts.exact_outer_surface)
+  if (opts.refine.exact_outer_surface)
     j["outer_surface_cut"] = {{"push_mm", d.solid_cut.push_mm},
                               {"uncovered_triangles", d.solid_cut.uncovered_triangles},
                               {"filled_dents", d.solid_cut.filled_dents},
