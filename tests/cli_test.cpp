@@ -524,13 +524,21 @@ TEST(Cli, ReportIsWrittenWithTheFolderAndRefusesABadOne) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(read_text(page), html);
 
-  // check --html puts the verdicts in; molds rebuilds the page with the new molds.
+  // check --html puts the verdicts in, and so does a check.json in the folder; molds rebuilds the
+  // page with the new molds, and drops the verdicts on the old ones.
   r = run("check " + dir + "/out --html");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(read_text(page).find("\"checks\":{\"passed\":true"), std::string::npos);
+  write_text(dir + "/out/check.json", R"({"passed": false, "checks": [{"name": "dhf",
+      "status": "fail", "summary": "part 0 is not", "figures": {}, "at": [1, 2, 3]}]})");
+  ASSERT_EQ(run("report " + dir + "/out").exit_code, 0);
+  EXPECT_NE(
+      read_text(page).find("\"status\":\"fail\",\"summary\":\"part 0 is not\",\"at\":[1,2,3]"),
+      std::string::npos);
   ASSERT_EQ(run("molds " + dir + "/out --wall 7 --quiet").exit_code, 0);
   EXPECT_NE(read_text(page), html);
   EXPECT_EQ(read_text(page).find("\"checks\":{"), std::string::npos);
+  EXPECT_FALSE(fs::exists(dir + "/out/check.json"));
 
   const std::string json_path = dir + "/out/decomposition.json";
   const std::string good = read_text(json_path);

@@ -40,9 +40,11 @@ def chromium(page, work, *extra):
     if os.geteuid() == 0:
         args.insert(1, "--no-sandbox")
     r = subprocess.run(args, capture_output=True, text=True, timeout=180)
-    # The software GL driver's performance notes are the browser's, not the page's.
+    # The software GL driver's performance notes, and the messages of Chromium's own pages
+    # (chrome://), are the browser's, not the page's.
     console = [line for line in r.stderr.splitlines()
-               if ":CONSOLE" in line and "GL Driver Message" not in line]
+               if ":CONSOLE" in line and "GL Driver Message" not in line
+               and "source: chrome://" not in line]
     if r.returncode != 0:
         fail(f"chromium exited with {r.returncode}: {r.stderr[-2000:]}")
     return r.stdout, console
@@ -86,9 +88,9 @@ def main():
         if console:
             fail("the page logged to its console:\n" + "\n".join(console))
 
-        # Unlit colours: each part's colour appears as it is, in many pixels.
+        # Unlit colours, parts far apart: each part's colour appears as it is, in many pixels.
         shot = os.path.join(work, "flat.png")
-        _, console = chromium(page + "#shot=parts&flat", work, f"--screenshot={shot}")
+        _, console = chromium(page + "#shot=parts&flat&explode=1", work, f"--screenshot={shot}")
         if console:
             fail("the page logged to its console:\n" + "\n".join(console))
         counts = Image.open(shot).convert("RGB").getcolors(maxcolors=1 << 24)

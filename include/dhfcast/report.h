@@ -40,14 +40,14 @@ void write_output(const std::string& outdir, const std::string& json, const Deco
 
 // Builds the molds of an existing output folder again with `opts` (epsilon_mm is taken from its
 // decomposition.json): replaces OUTDIR/molds/ and the molds entries, parameters.molds and
-// timings_s.molds of decomposition.json. Every part mesh, direction and number read is checked
-// first. The folder's new state is built beside it (".OUTNAME.dhfcast-tmp-PID") and swapped in
-// with one rename, so the folder is old or new, whole, at every instant; `finish` is called with
-// the new state's temporary folder before the swap, as by write_output(). Returns the molds (a
-// part whose mold failed has Mold::error).
-// Throws Error{Io} when the folder cannot be read or written, Error{InvalidInput} when it is not
-// a dhfcast decomposition or lists a file outside it (see folder_file()), a part that is not a
-// solid or a number out of range, Error{InvalidOptions} for bad options.
+// timings_s.molds of decomposition.json, and drops molds.png and check.json (about the old molds).
+// Every part mesh, direction and number read is checked first. The folder's new state is built
+// beside it (".OUTNAME.dhfcast-tmp-PID") and swapped in with one rename, so the folder is old or
+// new, whole, at every instant; `finish` is called with the new state's temporary folder before the
+// swap, as by write_output(). Returns the molds (a part whose mold failed has Mold::error). Throws
+// Error{Io} when the folder cannot be read or written, Error{InvalidInput} when it is not a dhfcast
+// decomposition or lists a file outside it (see folder_file()), a part that is not a solid or a
+// number out of range, Error{InvalidOptions} for bad options.
 std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts,
                                 const FolderFinisher& finish = {});
 

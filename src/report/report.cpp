@@ -533,8 +533,9 @@ std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts,
   const fs::path tmp = temp_beside(out);
   try {
     if (!fs::create_directory(tmp, ec)) io_error("cannot create " + tmp.string(), ec);
-    // The molds' preview shows the old molds: it is left out (`dhfcast report --png` draws it).
-    link_folder(out, tmp, {"molds", "decomposition.json", "molds.png"});
+    // The molds' preview and check's verdicts (check.json) are about the old molds: they are
+    // left out (`dhfcast report --png` and `dhfcast check` make them again).
+    link_folder(out, tmp, {"molds", "decomposition.json", "molds.png", "check.json"});
     write_mold_files(tmp.string(), molds);
     fs::create_directories(tmp / "molds", ec);
     std::ofstream f(tmp / "decomposition.json", std::ios::binary);

@@ -276,10 +276,17 @@ std::string report_page(const std::string& folder_name, const std::string& check
   }
   data["checks"] = checks_text.empty() ? ordered_json() : checks_view(checks_text, checks_name);
 
-  // The data sits in a <script> element: "</" must not end it early (JSON reads "<\/" as "</").
-  std::string json = data.dump(-1, ' ', false, ordered_json::error_handler_t::replace);
-  for (std::size_t at = json.find("</"); at != std::string::npos; at = json.find("</", at + 3))
-    json.replace(at, 2, "<\\/");
+  // The data sits in a <script> element: no "</script" or "<!--" may end or bend it. '<' appears
+  // in JSON only inside strings, where "\u003c" reads the same.
+  const std::string dumped = data.dump(-1, ' ', false, ordered_json::error_handler_t::replace);
+  std::string json;
+  json.reserve(dumped.size());
+  for (const char c : dumped) {
+    if (c == '<')
+      json += "\\u003c";
+    else
+      json += c;
+  }
   const std::string_view page = report_page_template();
   const std::size_t marker = page.find(kDataMarker);
   std::string html;
