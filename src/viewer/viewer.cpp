@@ -163,8 +163,7 @@ ordered_json folder_warnings(const ordered_json& j) {
     for (const ordered_json& w : j["warnings"])
       if (w.is_string()) out.push_back(w);
   if (j.value("assembly_found", true) == false)
-    out.push_back("no collision-free assembly order: " +
-                  j.value("assembly_message", std::string("the parts block each other")));
+    out.push_back(j.value("assembly_message", std::string("no collision-free assembly order")));
   for (const ordered_json& p : j["parts"]) {
     const std::string part = "part " + std::to_string(p["id"].get<std::int64_t>());
     if (p.contains("molds") && p["molds"].contains("error"))
