@@ -1,5 +1,6 @@
 // dhfcast command line: parses options, runs the stages in order, shows progress, maps errors to
 // messages and exit codes.
+#include <oneapi/tbb/global_control.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -11,7 +12,6 @@
 #include <map>
 #include <memory>
 #include <mutex>
-#include <oneapi/tbb/global_control.h>
 #include <string>
 #include <thread>
 
@@ -21,6 +21,7 @@
 #include "dhfcast/pipeline.h"
 #include "dhfcast/report.h"
 #include "dhfcast/stop.h"
+#include "dhfcast/viewer.h"
 
 using namespace dhfcast;
 
@@ -38,11 +39,16 @@ enum ExitCode {
 
 int exit_code(ErrorCode code) {
   switch (code) {
-    case ErrorCode::InvalidInput: return kBadInput;
-    case ErrorCode::InvalidOptions: return kUsage;
-    case ErrorCode::Io: return kIo;
-    case ErrorCode::Stopped: return kTimedOut;
-    default: return kFailure;
+    case ErrorCode::InvalidInput:
+      return kBadInput;
+    case ErrorCode::InvalidOptions:
+      return kUsage;
+    case ErrorCode::Io:
+      return kIo;
+    case ErrorCode::Stopped:
+      return kTimedOut;
+    default:
+      return kFailure;
   }
 }
 
@@ -156,13 +162,22 @@ struct CliOptions {
   DecomposeOptions decompose;
 };
 
+// Adds report.html to a folder being written (decompose, molds). The folder is good without it:
+// a failure is a warning, not a lost result.
+void add_report(const std::string& folder) {
+  try {
+    write_report(folder);
+  } catch (const Error& e) {
+    std::fprintf(stderr, "dhfcast: warning: report.html not written: %s\n", e.what());
+  }
+}
+
 // Warns about each part whose mold could not be built; true when all were.
 bool report_molds(const std::vector<Mold>& molds) {
   bool all = true;
   for (const Mold& m : molds)
     if (!m.error.empty()) {
-      std::fprintf(stderr, "dhfcast: warning: no mold for part %d: %s\n", m.part,
-                   m.error.c_str());
+      std::fprintf(stderr, "dhfcast: warning: no mold for part %d: %s\n", m.part, m.error.c_str());
       all = false;
     }
   return all;
@@ -190,21 +205,19 @@ int run_decompose(const CliOptions& cli) {
   if (!cli.quiet) {
     std::fprintf(stderr, "dhfcast: %s: %zu triangles, %.1f x %.1f x %.1f mm, %.0f mm3%s\n",
                  cli.input.c_str(), solid.mesh.triangles.size(), size.x(), size.y(), size.z(),
-                 volume_mm3,
-                 solid.flipped ? " (was inside out: flipped)" : "");
+                 volume_mm3, solid.flipped ? " (was inside out: flipped)" : "");
   }
 
   ProgressPrinter printer(cli.quiet);
   const Decomposition d = decompose(solid.mesh, cli.decompose, std::ref(printer));
 
-  InputInfo info{cli.input, static_cast<std::int64_t>(solid.mesh.triangles.size()),
-                 volume_mm3, bbox, solid.flipped};
+  InputInfo info{cli.input, static_cast<std::int64_t>(solid.mesh.triangles.size()), volume_mm3,
+                 bbox, solid.flipped};
   const double total_s = std::chrono::duration<double>(Clock::now() - t_start).count();
   write_output(cli.outdir, decomposition_json(info, cli.decompose, d, load_s, total_s), d,
-               cli.force);
+               cli.force, add_report);
 
-  if (!d.assembly.found)
-    std::fprintf(stderr, "dhfcast: warning: %s\n", d.assembly.message.c_str());
+  if (!d.assembly.found) std::fprintf(stderr, "dhfcast: warning: %s\n", d.assembly.message.c_str());
   report_molds(d.molds);
   // Carving is part of the result: the user glues around these holes.
   for (const CarvedVoid& v : d.carving.voids)
@@ -222,10 +235,10 @@ int run_decompose(const CliOptions& cli) {
   for (const Part& p : d.parts) {
     if (std::find(tiny.begin(), tiny.end(), p.id) == tiny.end()) continue;
     std::fprintf(stderr,
-                   "dhfcast: warning: part %d is %.2g %% of the volume (%.3g mm3), too small to be "
-                   "worth a mold of its own: every labeling tried has one, and no neighbour's "
-                   "direction allows its volume (try another --seed)\n",
-                   p.id, 100.0 * p.volume_mm3 / volume_mm3, p.volume_mm3);
+                 "dhfcast: warning: part %d is %.2g %% of the volume (%.3g mm3), too small to be "
+                 "worth a mold of its own: every labeling tried has one, and no neighbour's "
+                 "direction allows its volume (try another --seed)\n",
+                 p.id, 100.0 * p.volume_mm3 / volume_mm3, p.volume_mm3);
   }
   for (const InaccessibleRegion& r : d.inaccessible_regions)
     std::fprintf(stderr,
@@ -251,20 +264,19 @@ int run_decompose(const CliOptions& cli) {
     std::fprintf(stderr,
                  "  time: load %.1f s, tetrahedralize %.1f s, accessibility %.1f s, "
                  "segmentation %.1f s, parts %.1f s, molds %.1f s, total %.1f s\n",
-                 load_s, d.timings.tetrahedralize, d.timings.accessibility,
-                 d.timings.segmentation, d.timings.parts, d.timings.molds, total_s);
+                 load_s, d.timings.tetrahedralize, d.timings.accessibility, d.timings.segmentation,
+                 d.timings.parts, d.timings.molds, total_s);
   }
   return kOk;
 }
 
-int run_molds(const std::string& outdir, const MoldOptions& opts, int threads_wanted,
-              bool quiet) {
+int run_molds(const std::string& outdir, const MoldOptions& opts, int threads_wanted, bool quiet) {
   std::unique_ptr<oneapi::tbb::global_control> threads;
   if (threads_wanted > 0)
     threads = std::make_unique<oneapi::tbb::global_control>(
         oneapi::tbb::global_control::max_allowed_parallelism, threads_wanted);
   const auto t0 = Clock::now();
-  const std::vector<Mold> molds = rebuild_molds(outdir, opts);
+  const std::vector<Mold> molds = rebuild_molds(outdir, opts, add_report);
   report_molds(molds);
   if (!quiet)
     std::fprintf(stderr, "dhfcast: molds of %zu parts written to %s/molds in %.1f s\n",
@@ -273,17 +285,54 @@ int run_molds(const std::string& outdir, const MoldOptions& opts, int threads_wa
   return kOk;
 }
 
-int run_check(const CheckOptions& opts, bool json) {
+int run_check(const CheckOptions& opts, bool json, bool html) {
   const CheckReport report = check_output(opts);
   std::fputs((json ? format_json(report) : format_text(report)).c_str(), stdout);
+  if (html) {
+    std::fflush(stdout);
+    try {
+      write_report(opts.outdir, format_json(report));
+    } catch (const Error& e) {
+      // A folder too broken for the page has failed its contract check: the verdict says so.
+      std::fprintf(stderr, "dhfcast: warning: report.html not written: %s\n", e.what());
+    }
+  }
   return report.passed() ? kOk : kCheckFailed;
+}
+
+// True when `program` is an executable file on PATH.
+bool on_path(const std::string& program) {
+  const char* path = std::getenv("PATH");
+  std::string dirs = path ? path : "";
+  for (std::size_t start = 0; start <= dirs.size();) {
+    const std::size_t end = std::min(dirs.find(':', start), dirs.size());
+    const std::string file = (end > start ? dirs.substr(start, end - start) : ".") + "/" + program;
+    if (::access(file.c_str(), X_OK) == 0) return true;
+    start = end + 1;
+  }
+  return false;
+}
+
+int run_report(const std::string& outdir, bool png, bool quiet) {
+  // Fail before writing anything when the previews cannot be drawn.
+  if (png && !on_path("chromium"))
+    throw Error(ErrorCode::Io,
+                "--png needs Chromium (Debian package chromium, installed by "
+                "scripts/install-deps.sh): no chromium on PATH");
+  write_report(outdir);
+  if (png) render_previews(outdir);
+  if (!quiet)
+    std::fprintf(stderr, "dhfcast: wrote %s/report.html%s\n", outdir.c_str(),
+                 png ? ", preview.png and molds.png" : "");
+  return kOk;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"dhfcast: split a closed 3D model into parts that each cast in a two-piece "
-               "rigid mold"};
+  CLI::App app{
+      "dhfcast: split a closed 3D model into parts that each cast in a two-piece "
+      "rigid mold"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "dhfcast 0.1.0");
   double timeout_s = 0.0;
@@ -298,8 +347,7 @@ int main(int argc, char** argv) {
   DecomposeOptions& o = cli.decompose;
   CLI::App* dec = app.add_subcommand(
       "decompose", "Split INPUT into double-height-field parts and write them to OUTDIR");
-  dec->add_option("input", cli.input, "Closed triangle mesh: .stl, .obj, .ply or .off")
-      ->required();
+  dec->add_option("input", cli.input, "Closed triangle mesh: .stl, .obj, .ply or .off")->required();
   dec->add_option("-o,--output", cli.outdir, "Output folder (must not exist unless --force)")
       ->required();
   dec->add_option("--epsilon", o.access.epsilon_mm, "Undercut tolerance in mm")
@@ -357,8 +405,7 @@ int main(int argc, char** argv) {
       ->check(kSizeRangeMm)
       ->excludes(dec_scale)
       ->excludes(dec_units);
-  dec->add_option("--threads", cli.threads, "Worker threads (0: all cores)")
-      ->check(kThreadRange);
+  dec->add_option("--threads", cli.threads, "Worker threads (0: all cores)")->check(kThreadRange);
   dec->add_flag("-q,--quiet", cli.quiet, "Print only errors and warnings");
   dec->add_flag("-f,--force", cli.force, "Replace OUTDIR if it exists");
 
@@ -370,15 +417,15 @@ int main(int argc, char** argv) {
       "molds", "Build the mold halves of an existing OUTDIR again, with other mold options");
   mld->add_option("outdir", mold_outdir, "Folder written by dhfcast decompose")->required();
   add_mold_options(mld, mold_opts);
-  mld->add_option("--threads", mold_threads, "Worker threads (0: all cores)")
-      ->check(kThreadRange);
+  mld->add_option("--threads", mold_threads, "Worker threads (0: all cores)")->check(kThreadRange);
   mld->add_flag("-q,--quiet", mold_quiet, "Print only errors and warnings");
 
   CheckOptions check_opts;
   bool check_json = false;
-  CLI::App* chk = app.add_subcommand(
-      "check", "Verify an output folder independently: contract, solids, coverage, DHF, "
-               "assembly, molds, fidelity");
+  CLI::App* chk =
+      app.add_subcommand("check",
+                         "Verify an output folder independently: contract, solids, coverage, DHF, "
+                         "assembly, molds, fidelity");
   chk->add_option("outdir", check_opts.outdir, "Folder written by dhfcast decompose")->required();
   chk->add_option("--input", check_opts.input_mesh,
                   "The decomposed mesh: enables the gap, outside and fidelity figures");
@@ -398,6 +445,9 @@ int main(int argc, char** argv) {
       ->excludes(chk_scale)
       ->excludes(chk_units);
   chk->add_flag("--json", check_json, "Print all figures as JSON");
+  bool check_html = false;
+  chk->add_flag("--html", check_html,
+                "Also write OUTDIR/report.html with the verdicts, the places they name marked");
   chk->add_option("--epsilon", check_opts.epsilon_mm, "Undercut / contact tolerance in mm")
       ->capture_default_str();
   chk->add_option("--max-volume-error", check_opts.max_volume_error,
@@ -423,8 +473,18 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   chk->add_option("--seed", check_opts.seed, "Seed of the sampling")->capture_default_str();
   int check_threads = 0;
-  chk->add_option("--threads", check_threads, "Worker threads (0: all cores)")
-      ->check(kThreadRange);
+  chk->add_option("--threads", check_threads, "Worker threads (0: all cores)")->check(kThreadRange);
+
+  std::string report_outdir;
+  bool report_png = false, report_quiet = false;
+  CLI::App* rep = app.add_subcommand(
+      "report",
+      "Write OUTDIR/report.html, a 3D view of the parts, their assembly and molds "
+      "that works offline");
+  rep->add_option("outdir", report_outdir, "Folder written by dhfcast decompose")->required();
+  rep->add_flag("--png", report_png,
+                "Also write preview.png (the parts) and molds.png, rendered by headless Chromium");
+  rep->add_flag("-q,--quiet", report_quiet, "Print only errors and warnings");
 
   try {
     app.parse(argc, argv);
@@ -443,13 +503,14 @@ int main(int argc, char** argv) {
       return run_decompose(cli);
     }
     if (mld->parsed()) return run_molds(mold_outdir, mold_opts, mold_threads, mold_quiet);
+    if (rep->parsed()) return run_report(report_outdir, report_png, report_quiet);
     if (chk->parsed()) {
       std::unique_ptr<oneapi::tbb::global_control> threads;
       if (check_threads > 0)
         threads = std::make_unique<oneapi::tbb::global_control>(
             oneapi::tbb::global_control::max_allowed_parallelism, check_threads);
       check_opts.input_scale = check_scale * kUnitsToMm.at(check_units);
-      return run_check(check_opts, check_json);
+      return run_check(check_opts, check_json, check_html);
     }
   } catch (const Error& e) {
     std::fprintf(stderr, "dhfcast: error: %s\n",

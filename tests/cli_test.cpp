@@ -96,18 +96,17 @@ INSTANTIATE_TEST_SUITE_P(
     Cases, BadInput,
     ::testing::Values(
         std::make_pair("open.obj", cube_obj(1)),
-        std::make_pair("nonmanifold_edge.obj",
-                       cube_obj(0, "v 10 0 -10\nf 2 3 9\nf 3 2 9\n")),
+        std::make_pair("nonmanifold_edge.obj", cube_obj(0, "v 10 0 -10\nf 2 3 9\nf 3 2 9\n")),
         std::make_pair("self_intersecting.obj",
-                       cube_obj() +
-                           "v 5 5 5\nv 15 5 5\nv 15 15 5\nv 5 15 5\nv 5 5 15\nv 15 5 15\n"
-                           "v 15 15 15\nv 5 15 15\n"
-                           "f 9 11 10\nf 9 12 11\nf 13 14 15\nf 13 15 16\nf 9 10 14\n"
-                           "f 9 14 13\nf 10 11 15\nf 10 15 14\nf 11 12 16\nf 11 16 15\n"
-                           "f 12 9 13\nf 12 13 16\n"),
+                       cube_obj() + "v 5 5 5\nv 15 5 5\nv 15 15 5\nv 5 15 5\nv 5 5 15\nv 15 5 15\n"
+                                    "v 15 15 15\nv 5 15 15\n"
+                                    "f 9 11 10\nf 9 12 11\nf 13 14 15\nf 13 15 16\nf 9 10 14\n"
+                                    "f 9 14 13\nf 10 11 15\nf 10 15 14\nf 11 12 16\nf 11 16 15\n"
+                                    "f 12 9 13\nf 12 13 16\n"),
         std::make_pair("truncated.stl", truncated_binary_stl()),
-        std::make_pair("nan.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 nan\n"
-                                  "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"),
+        std::make_pair("nan.obj",
+                       "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 nan\n"
+                       "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"),
         std::make_pair("empty.stl", std::string()),
         std::make_pair("garbage.off", "OFF\n3 1 0\n0 0 0\n1 zero 0\n")),
     [](const auto& info) { return fs::path(info.param.first).stem().string(); });
@@ -304,11 +303,11 @@ TEST(Cli, KilledAtAnyInstantLeavesTheOldFolderOrTheNewOneWhole) {
   const std::string dir = test::temp_dir("kill");
   write_text(dir + "/cube.obj", cube_obj());
   const std::string out = dir + "/out";
-  const std::vector<std::string> common = {"--tets", "2000", "--directions", "64",
-                                           "--restarts", "2", "--no-molds", "--force"};
+  const std::vector<std::string> common = {"--tets",     "2000", "--directions", "64",
+                                           "--restarts", "2",    "--no-molds",   "--force"};
   auto decompose = [&](int seed) {
-    std::vector<std::string> args = {"decompose", dir + "/cube.obj", "-o", out, "--seed",
-                                     std::to_string(seed)};
+    std::vector<std::string> args = {"decompose", dir + "/cube.obj", "-o",
+                                     out,         "--seed",          std::to_string(seed)};
     args.insert(args.end(), common.begin(), common.end());
     return args;
   };
@@ -357,8 +356,9 @@ TEST(Cli, TimeoutStopsWithExitCode6AndWritesNothing) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   EXPECT_EQ(r.exit_code, 6) << r.err;
   // After the progress lines, one error line.
-  const std::string last_line = "dhfcast: error: time limit of 1 s reached (--timeout); nothing "
-                                "written\n";
+  const std::string last_line =
+      "dhfcast: error: time limit of 1 s reached (--timeout); nothing "
+      "written\n";
   EXPECT_TRUE(r.err.ends_with(last_line)) << r.err;
   EXPECT_EQ(r.err.find("error"), r.err.size() - last_line.size() + 9) << r.err;
   EXPECT_LT(seconds, 15);  // the deadline, the watchdog's grace and some
@@ -375,8 +375,7 @@ TEST(Cli, TimeoutStopsWithExitCode6AndWritesNothing) {
   for (const std::string command : {"molds " + out + " --wall 7", "check " + out}) {
     const RunResult stopped = run("--timeout 0.001 " + command);
     EXPECT_EQ(stopped.exit_code, 6) << command << ": " << stopped.err;
-    EXPECT_NE(stopped.err.find("time limit of 0.001 s reached"), std::string::npos)
-        << stopped.err;
+    EXPECT_NE(stopped.err.find("time limit of 0.001 s reached"), std::string::npos) << stopped.err;
     std::stringstream after;
     after << std::ifstream(out + "/decomposition.json").rdbuf();
     EXPECT_EQ(after.str(), json_before) << command;
@@ -481,8 +480,8 @@ TEST(Cli, MoldsRefusesABadFolderBeforeAnyWorkAndLeavesItUntouched) {
        "parameters.epsilon_mm is not a number"},
       {replaced("\"epsilon_mm\": 0.4", "\"epsilon_mm\": 1e400"),
        "not valid JSON at parameters.epsilon_mm: number overflow parsing '1e400'"},
-      {replaced("\"format\"", "\"deep\": " + std::string(100000, '[') +
-                                   std::string(100000, ']') + ", \"format\""),
+      {replaced("\"format\"", "\"deep\": " + std::string(100000, '[') + std::string(100000, ']') +
+                                  ", \"format\""),
        "deeper than 64 levels"}};
   for (const auto& [text, message] : cases) {
     write_text(json_path, text);
@@ -495,7 +494,8 @@ TEST(Cli, MoldsRefusesABadFolderBeforeAnyWorkAndLeavesItUntouched) {
   // A good folder is swapped whole: the part file is the same file, linked, and no temporary
   // folder is left beside it.
   write_text(json_path, good);
-  struct stat before {}, after {};
+  struct stat before {
+  }, after{};
   ::stat((dir + "/out/parts/part_000.stl").c_str(), &before);
   ASSERT_EQ(run("molds " + dir + "/out --quiet").exit_code, 0);
   ::stat((dir + "/out/parts/part_000.stl").c_str(), &after);
@@ -506,11 +506,68 @@ TEST(Cli, MoldsRefusesABadFolderBeforeAnyWorkAndLeavesItUntouched) {
     EXPECT_EQ(e.path().filename().string().find(".dhfcast-tmp-"), std::string::npos) << e.path();
 }
 
+// decompose writes report.html with the folder; `report` writes the same bytes again, and refuses
+// a bad folder with a one-line error, writing nothing.
+TEST(Cli, ReportIsWrittenWithTheFolderAndRefusesABadOne) {
+  const std::string dir = test::temp_dir("report");
+  write_text(dir + "/cube.obj", cube_obj());
+  RunResult r = run("decompose " + dir + "/cube.obj -o " + dir +
+                    "/out --tets 2000 --directions 64 --restarts 2 --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string page = dir + "/out/report.html";
+  const std::string html = read_text(page);
+  ASSERT_NE(html.find("\"parts\":[{\"id\":0"), std::string::npos);
+  EXPECT_NE(html.find("OrbitControls"), std::string::npos);  // three.js is inlined
+  EXPECT_EQ(html.find("<script src"), std::string::npos);    // and nothing is fetched
+  fs::remove(page);
+  r = run("report " + dir + "/out");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(read_text(page), html);
+
+  // check --html puts the verdicts in, and so does a check.json in the folder; molds rebuilds the
+  // page with the new molds, and drops the verdicts on the old ones.
+  r = run("check " + dir + "/out --html");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(read_text(page).find("\"checks\":{\"passed\":true"), std::string::npos);
+  write_text(dir + "/out/check.json", R"({"passed": false, "checks": [{"name": "dhf",
+      "status": "fail", "summary": "part 0 is not", "figures": {}, "at": [1, 2, 3]}]})");
+  ASSERT_EQ(run("report " + dir + "/out").exit_code, 0);
+  EXPECT_NE(
+      read_text(page).find("\"status\":\"fail\",\"summary\":\"part 0 is not\",\"at\":[1,2,3]"),
+      std::string::npos);
+  ASSERT_EQ(run("molds " + dir + "/out --wall 7 --quiet").exit_code, 0);
+  EXPECT_NE(read_text(page), html);
+  EXPECT_EQ(read_text(page).find("\"checks\":{"), std::string::npos);
+  EXPECT_FALSE(fs::exists(dir + "/out/check.json"));
+
+  const std::string json_path = dir + "/out/decomposition.json";
+  const std::string good = read_text(json_path);
+  fs::remove(page);
+  auto refused = [&](const std::string& why) {
+    const RunResult bad = run("report " + dir + "/out");
+    EXPECT_EQ(bad.exit_code, 3) << why << ": " << bad.err;
+    EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << why << ": " << bad.err;
+    EXPECT_FALSE(fs::exists(page)) << why;
+    for (const fs::directory_entry& e : fs::directory_iterator(dir + "/out"))
+      EXPECT_EQ(e.path().filename().string().find(".dhfcast-tmp-"), std::string::npos) << e.path();
+    return bad.err;
+  };
+  write_text(json_path, good.substr(0, good.size() / 2));
+  EXPECT_NE(refused("corrupt JSON").find("not valid JSON"), std::string::npos);
+  write_text(json_path, good);
+  fs::rename(dir + "/out/parts/part_000.stl", dir + "/out/part.stl");
+  EXPECT_NE(refused("missing part").find("parts/part_000.stl does not exist"), std::string::npos);
+  write_text(dir + "/out/parts/part_000.stl", "solid broken\nfacet normal 0 0 1\n");
+  EXPECT_NE(refused("corrupt part").find("parts/part_000.stl"), std::string::npos);
+  EXPECT_EQ(run("report " + dir + "/nowhere").exit_code, 4);
+}
+
 TEST(Cli, PartsAreCutFromTheInputUnlessTetSurfaceIsAsked) {
   const std::string path = test::cgal_mesh("ellipsoid.off");
   if (path.empty()) GTEST_SKIP() << "CGAL data set absent (install libcgal-demo)";
   const std::string dir = test::temp_dir("ellipsoid");
-  const std::string common = " --scale 50 --tets 3000 --directions 64 --restarts 2 --quiet --no-molds";
+  const std::string common =
+      " --scale 50 --tets 3000 --directions 64 --restarts 2 --quiet --no-molds";
   ASSERT_EQ(run("decompose " + path + " -o " + dir + "/exact" + common).exit_code, 0);
   ASSERT_EQ(run("decompose " + path + " -o " + dir + "/tets" + common + " --tet-surface").exit_code,
             0);
@@ -536,9 +593,9 @@ TEST(Cli, PartsAreCutFromTheInputUnlessTetSurfaceIsAsked) {
   EXPECT_EQ(unscaled.exit_code, 3);
   EXPECT_NE(unscaled.err.find("--scale"), std::string::npos) << unscaled.err;
   const std::string report = dir + "/check.txt";
-  std::system((test::cli_path() + " check " + dir + "/exact --input " + path + " --scale 50 > " +
-               report)
-                  .c_str());
+  std::system(
+      (test::cli_path() + " check " + dir + "/exact --input " + path + " --scale 50 > " + report)
+          .c_str());
   std::stringstream text;
   text << std::ifstream(report).rdbuf();
   EXPECT_NE(text.str().find("PASS coverage"), std::string::npos) << text.str();

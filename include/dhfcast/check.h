@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -14,9 +15,9 @@ namespace dhfcast {
 
 // Options for check_output(). Fractions are plain ratios (0.005 = 0.5 %).
 struct CheckOptions {
-  std::string outdir;       // the folder written by `dhfcast decompose`
-  std::string input_mesh;   // the decomposed mesh, in mm; "" skips the checks that need it
-                            // (gap, outside and fidelity) and takes the input volume from the json
+  std::string outdir;        // the folder written by `dhfcast decompose`
+  std::string input_mesh;    // the decomposed mesh, in mm; "" skips the checks that need it
+                             // (gap, outside and fidelity) and takes the input volume from the json
   double input_scale = 1.0;  // multiplies input_mesh's coordinates (decompose's --scale x units)
   double input_size_mm = 0.0;  // when > 0, decompose's --size: replaces input_scale
   // Undercut / contact tolerance, decompose's default (README: --epsilon).
@@ -42,7 +43,7 @@ struct CheckOptions {
   // molds (only when decomposition.json lists them): each half must leave its part (at most
   // max_blocked_samples of its samples deeper than epsilon), part and halves may overlap by at
   // most max_overlap_fraction of the part's volume, and the halves must mould its surface.
-  std::int32_t mold_samples = 20000;        // per part and per test (release, overlap, cover)
+  std::int32_t mold_samples = 20000;  // per part and per test (release, overlap, cover)
   // Part-surface samples moulded: a half within epsilon/4, or the point epsilon out along the
   // normal inside a half (an undercut sliver the tolerance accepts, which the cast fills), or
   // opening into a listed sprue or vent.
@@ -62,6 +63,8 @@ struct CheckItem {
   bool skipped = false;  // not applicable (e.g. no molds) or impossible (e.g. unreadable parts)
   std::string summary;   // one line: the figures that matter, or the first problem found
   std::vector<std::pair<std::string, double>> figures;  // named figures, in a fixed order
+  std::optional<Vec3> at;  // the place the summary names, in the parts' frame (failing dhf,
+                           // assembly, molds; fidelity's farthest point)
 };
 
 // All checks, in the order they ran.
@@ -83,7 +86,13 @@ CheckReport check_output(const CheckOptions& options);
 // the verdict ("PASS: 6 checks passed, 1 skipped" or "FAIL: 2 of 7 checks failed (dhf, molds)").
 std::string format_text(const CheckReport& report);
 // {"passed": bool, "checks": [{"name", "status": "pass"|"fail"|"skip", "summary",
-//  "figures": {key: number}}]}, pretty-printed, ending with a newline.
+//  "figures": {key: number}, "at": [x, y, z] when the check names a place}]}, pretty-printed,
+// ending with a newline.
 std::string format_json(const CheckReport& report);
+
+// The contract check alone (the first item of check_output()): what decomposition.json and the
+// presence of the files it names say, no mesh read. For readers of a folder that show it.
+// Throws Error{Io} when outdir or its decomposition.json cannot be read.
+CheckItem check_contract(const std::string& outdir);
 
 }  // namespace dhfcast

@@ -66,7 +66,7 @@ std::vector<SurfaceSample> inner_samples(const TriMesh& mesh, std::int64_t count
 // Sweeps of many samples against one solid.
 struct SweepTally {
   std::int64_t blocked = 0, unresolved = 0;
-  double inside_mm = 0.0;  // longest path inside, over blocked samples
+  double inside_mm = 0.0;             // longest path inside, over blocked samples
   Vec3 first_blocked = Vec3::Zero();  // the first blocked sample, when blocked > 0
 };
 
@@ -174,7 +174,8 @@ CheckItem check_assembly(const CheckContext& c) {
       blocked += t.blocked;
       ++pairs;
       inside_mm = std::max(inside_mm, t.inside_mm);
-      if (first.empty())
+      if (first.empty()) {
+        item.at = t.first_blocked;
         first = format(
             "%s (placed %zu%s) runs into %s on its way in: %lld of %lld samples, "
             "up to %.3g mm inside (first from %.2f %.2f %.2f)",
@@ -182,6 +183,7 @@ CheckItem check_assembly(const CheckContext& c) {
             part_name(c.parts[c.order[j]]).c_str(), static_cast<long long>(t.blocked),
             static_cast<long long>(sample_count[c.order[i]]), t.inside_mm, t.first_blocked.x(),
             t.first_blocked.y(), t.first_blocked.z());
+      }
     }
   std::int64_t samples = 0;
   for (std::int64_t s : sample_count) samples += s;
@@ -231,6 +233,7 @@ CheckItem check_molds(const CheckContext& c) {
     }
     Random random(stream_seed(o.seed, kMoldStream + 16 * (i + 1)));
     std::string problem;
+    std::optional<Vec3> problem_at;
 
     // --- release: up leaves along +d, down along -d ---
     const SurfaceIndex* halves[2] = {&*part.mold_up, &*part.mold_down};
@@ -241,12 +244,14 @@ CheckItem check_molds(const CheckContext& c) {
       blocked += t.blocked;
       unresolved += t.unresolved;
       inside_mm = std::max(inside_mm, t.inside_mm);
-      if (t.blocked > o.max_blocked_samples && problem.empty())
+      if (t.blocked > o.max_blocked_samples && problem.empty()) {
+        problem_at = t.first_blocked;
         problem = format(
             "the %s half runs into the part when pulled along %sd (%lld samples, up "
             "to %.3g mm inside; first at %.2f %.2f %.2f)",
             h == 0 ? "up" : "down", h == 0 ? "+" : "-", static_cast<long long>(t.blocked),
             t.inside_mm, t.first_blocked.x(), t.first_blocked.y(), t.first_blocked.z());
+      }
     }
 
     // --- overlap: points of the block inside two of part, up, down ---
@@ -297,8 +302,7 @@ CheckItem check_molds(const CheckContext& c) {
       for (const CheckedPart::Channel& ch : part.channels) {
         const Vec3 axis = ch.exit - ch.mouth;
         const double t = std::clamp((p - ch.mouth).dot(axis) / axis.squaredNorm(), 0.0, 1.0);
-        if ((ch.mouth + t * axis - p).norm() <= 0.5 * ch.diameter_mm + near_mm)
-          state[k] = kChannel;
+        if ((ch.mouth + t * axis - p).norm() <= 0.5 * ch.diameter_mm + near_mm) state[k] = kChannel;
       }
     });
     const double n_surface = std::max<double>(1.0, double(surface.size()));
@@ -311,6 +315,7 @@ CheckItem check_molds(const CheckContext& c) {
     if (cover + sliver + served < o.min_mold_surface_coverage && problem.empty()) {
       const auto bare = std::ranges::find(state, kBare) - state.begin();
       const Vec3& at = surface[bare].point;
+      problem_at = at;
       problem = format(
           "only %.2f%% of the part's surface is within %.3g mm of a half (%.2f%% more within "
           "the undercut tolerance, %.2f%% opens into a channel; first bare sample at %.2f %.2f "
@@ -324,11 +329,14 @@ CheckItem check_molds(const CheckContext& c) {
     vents += part.vents;
     min_vents = std::min(min_vents, part.vents);
     if ((part.sprues < 1 || part.keys < 3) && problem.empty())
-      problem = format("the mold lists %d sprue%s and %d key%s (at least 1 and 3 needed)",
-                       part.sprues, part.sprues == 1 ? "" : "s", part.keys,
-                       part.keys == 1 ? "" : "s");
+      problem =
+          format("the mold lists %d sprue%s and %d key%s (at least 1 and 3 needed)", part.sprues,
+                 part.sprues == 1 ? "" : "s", part.keys, part.keys == 1 ? "" : "s");
 
-    if (!problem.empty() && first.empty()) first = part_name(part) + ": " + problem;
+    if (!problem.empty() && first.empty()) {
+      first = part_name(part) + ": " + problem;
+      item.at = problem_at;
+    }
   }
   if (with_molds == 0) {
     item.skipped = true;

@@ -133,7 +133,8 @@ std::string read_motion(const json& j, Motion& m) {
     if (!j[r].is_array() || j[r].size() != 4) return "is not 3 rows [r, r, r, t]";
     for (int c = 0; c < 4; ++c) {
       const std::optional<double> x = number(j[r][c], kMaxFolderCoordinateMm);
-      if (!x) return format("has an entry that is not a number within +-%g", kMaxFolderCoordinateMm);
+      if (!x)
+        return format("has an entry that is not a number within +-%g", kMaxFolderCoordinateMm);
       m(r, c) = *x;
     }
   }
@@ -184,7 +185,8 @@ FolderContents read_contents(const fs::path& outdir, const std::string& text) {
     }
     if (in.contains("bbox_mm")) {
       const json& box = in["bbox_mm"];
-      const std::optional<Vec3> lo = box.is_array() && box.size() == 2 ? vec3(box[0]) : std::nullopt,
+      const std::optional<Vec3> lo =
+                                    box.is_array() && box.size() == 2 ? vec3(box[0]) : std::nullopt,
                                 hi = lo ? vec3(box[1]) : std::nullopt;
       if (lo && hi && (lo->array() <= hi->array()).all())
         c.input_bbox = Box3{*lo, *hi};
@@ -245,8 +247,9 @@ FolderContents read_contents(const fs::path& outdir, const std::string& text) {
         problem(where + format(" removal_direction has length %.9g, not 1", p.removal->norm()));
       if (p.removal && p.removal->norm() == 0.0) p.removal.reset();
     }
-    if (const std::optional<double> v =
-            jp.contains("volume_mm3") ? number(jp["volume_mm3"], kMaxFolderVolumeMm3) : std::nullopt)
+    if (const std::optional<double> v = jp.contains("volume_mm3")
+                                            ? number(jp["volume_mm3"], kMaxFolderVolumeMm3)
+                                            : std::nullopt)
       p.volume_mm3 = *v;
     else
       problem(where + format(" has no volume_mm3 within +-%g", kMaxFolderVolumeMm3));
@@ -255,8 +258,8 @@ FolderContents read_contents(const fs::path& outdir, const std::string& text) {
       if (m.is_object() && m.contains("error") && m["error"].is_string()) {
         p.mold_error = m["error"].get<std::string>();
         if (p.mold_error.empty()) problem(where + " molds error is empty");
-      } else if (m.is_object() && m.contains("up") && m["up"].is_string() &&
-                 m.contains("down") && m["down"].is_string()) {
+      } else if (m.is_object() && m.contains("up") && m["up"].is_string() && m.contains("down") &&
+                 m["down"].is_string()) {
         p.mold_up = file_in_folder(m["up"].get<std::string>(), where + " mold");
         p.mold_down = file_in_folder(m["down"].get<std::string>(), where + " mold");
         if (p.mold_up.empty() || p.mold_down.empty()) p.mold_up = p.mold_down = {};
@@ -277,15 +280,17 @@ FolderContents read_contents(const fs::path& outdir, const std::string& text) {
             continue;
           }
           for (const json& c : m[kind]) {
-            const std::optional<Vec3> mouth = c.is_object() && c.contains("mouth")
-                                                  ? vec3(c["mouth"]) : std::nullopt;
-            const std::optional<Vec3> exit = c.is_object() && c.contains("exit")
-                                                 ? vec3(c["exit"]) : std::nullopt;
+            const std::optional<Vec3> mouth =
+                c.is_object() && c.contains("mouth") ? vec3(c["mouth"]) : std::nullopt;
+            const std::optional<Vec3> exit =
+                c.is_object() && c.contains("exit") ? vec3(c["exit"]) : std::nullopt;
             const double diameter =
                 c.is_object() && c.contains("diameter_mm")
-                    ? number(c["diameter_mm"], kMaxFolderCoordinateMm).value_or(0) : 0;
+                    ? number(c["diameter_mm"], kMaxFolderCoordinateMm).value_or(0)
+                    : 0;
             if (!mouth || !exit || !(diameter > 0)) {
-              problem(where + " molds." + kind + " has an entry without mouth, exit and diameter_mm > 0");
+              problem(where + " molds." + kind +
+                      " has an entry without mouth, exit and diameter_mm > 0");
               continue;
             }
             p.channels.push_back({*mouth, *exit, diameter});
@@ -392,8 +397,8 @@ struct LoadedMesh {
   std::string file;  // as named in decomposition.json
   Kind kind = Kind::Part;
   bool is_part() const { return kind == Kind::Part; }
-  std::int32_t part = 0;  // index into FolderContents::parts (voids: into ::voids)
-  std::optional<TriMesh> mesh;                          // mold halves: moved to the model's frame
+  std::int32_t part = 0;        // index into FolderContents::parts (voids: into ::voids)
+  std::optional<TriMesh> mesh;  // mold halves: moved to the model's frame
   std::optional<Motion> to_model = Motion::Identity();  // mold halves: from the file's frame
   std::string problem;        // why it is not a valid solid ("" when it is)
   double volume_error = 0.0;  // parts: |json - mesh| / |mesh|
@@ -529,13 +534,26 @@ bool CheckReport::passed() const {
   return std::ranges::all_of(items, [](const CheckItem& i) { return i.skipped || i.passed; });
 }
 
+namespace {
+
+// decomposition.json of the folder `outdir`. Throws Error{Io} when there is none.
+std::string read_decomposition_json(const fs::path& outdir) {
+  std::error_code ec;
+  if (!fs::is_directory(outdir, ec))
+    throw Error(ErrorCode::Io, outdir.string() + " is not a folder");
+  return read_file(outdir / "decomposition.json");
+}
+
+}  // namespace
+
+CheckItem check_contract(const std::string& outdir) {
+  return contract_item(read_contents(outdir, read_decomposition_json(outdir)));
+}
+
 CheckReport check_output(const CheckOptions& options) {
   validate_options(options);
   const fs::path outdir(options.outdir);
-  std::error_code ec;
-  if (!fs::is_directory(outdir, ec))
-    throw Error(ErrorCode::Io, options.outdir + " is not a folder");
-  const std::string text = read_file(outdir / "decomposition.json");
+  const std::string text = read_decomposition_json(outdir);
 
   detail::CheckContext context;
   context.options = options;
@@ -668,6 +686,7 @@ std::string format_json(const CheckReport& report) {
                                                : "fail"},
                       {"summary", item.summary},
                       {"figures", figures}});
+    if (item.at) checks.back()["at"] = {item.at->x(), item.at->y(), item.at->z()};
   }
   const nlohmann::ordered_json j = {{"passed", report.passed()}, {"checks", checks}};
   // Messages may quote bytes of the folder's files that are no UTF-8.

@@ -153,6 +153,7 @@ CheckItem check_dhf(const CheckContext& c) {
         static_cast<long long>(failing), failing == 1 ? " is" : "s are", worst_name.c_str(),
         100 * w.fraction(), static_cast<long long>(w.violations), static_cast<long long>(w.lines),
         w.depth_mm, w.gap_middle.x(), w.gap_middle.y(), w.gap_middle.z());
+  if (!item.passed && w.lines > 0) item.at = w.gap_middle;
   return item;
 }
 

@@ -97,6 +97,7 @@ CheckItem check_fidelity(const CheckContext& c) {
       "input: p99 %.3g mm, max %.3g mm (at %.2f %.2f %.2f) (limit p99 %.3g mm)",
       in_p99, in_max, in_at.x(), in_at.y(), in_at.z(), out_p99, out_max, out_at.x(), out_at.y(),
       out_at.z(), limit_mm);
+  item.at = in_max >= out_max ? in_at : out_at;
   return item;
 }
 

@@ -384,7 +384,7 @@ void check_output_location(const std::string& outdir, bool replace, const std::s
 }
 
 void write_output(const std::string& outdir, const std::string& json, const Decomposition& d,
-                  bool replace) {
+                  bool replace, const FolderFinisher& finish) {
   check_output_location(outdir, replace);
   const fs::path out = folder_path(outdir);
   // A stop is honoured before the folder is begun, never while it is built.
@@ -404,6 +404,7 @@ void write_output(const std::string& outdir, const std::string& json, const Deco
     f << json;
     f.close();
     if (!f) throw Error(ErrorCode::Io, "cannot write " + (tmp / "decomposition.json").string());
+    if (finish) finish(tmp.string());
     swap_in(tmp, out, outdir);
   } catch (...) {
     fs::remove_all(tmp, ec);
@@ -485,7 +486,8 @@ std::vector<Part> read_folder_parts(const fs::path& out, const ordered_json& j,
 
 }  // namespace
 
-std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts) {
+std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts,
+                                const FolderFinisher& finish) {
   opts.validate();
   std::error_code ec;
   // The real folder, so a symlink to it is not what gets swapped.
@@ -531,13 +533,16 @@ std::vector<Mold> rebuild_molds(const std::string& outdir, MoldOptions opts) {
   const fs::path tmp = temp_beside(out);
   try {
     if (!fs::create_directory(tmp, ec)) io_error("cannot create " + tmp.string(), ec);
-    link_folder(out, tmp, {"molds", "decomposition.json"});
+    // The molds' preview and check's verdicts (check.json) are about the old molds: they are
+    // left out (`dhfcast report --png` and `dhfcast check` make them again).
+    link_folder(out, tmp, {"molds", "decomposition.json", "molds.png", "check.json"});
     write_mold_files(tmp.string(), molds);
     fs::create_directories(tmp / "molds", ec);
     std::ofstream f(tmp / "decomposition.json", std::ios::binary);
     f << j.dump(2) << "\n";
     f.close();
     if (!f) throw Error(ErrorCode::Io, "cannot write " + (tmp / "decomposition.json").string());
+    if (finish) finish(tmp.string());
     swap_in(tmp, out, outdir);
   } catch (...) {
     fs::remove_all(tmp, ec);
