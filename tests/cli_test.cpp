@@ -62,6 +62,14 @@ std::string cube_obj(int drop = 0, const std::string& extra = "") {
   return s + extra;
 }
 
+// Writes the cube to DIR/cube.obj and decomposes it into DIR/out with options fast enough for a
+// test (2000 tets, 64 directions, 2 restarts), quiet, plus `extra`.
+RunResult decompose_cube(const std::string& dir, const std::string& extra = "") {
+  write_text(dir + "/cube.obj", cube_obj());
+  return run("decompose " + dir + "/cube.obj -o " + dir +
+             "/out --tets 2000 --directions 64 --restarts 2 --quiet" + extra);
+}
+
 class BadInput : public ::testing::TestWithParam<std::pair<std::string, std::string>> {};
 
 TEST_P(BadInput, OneLineErrorNonZeroExitNoOutput) {
@@ -372,7 +380,7 @@ TEST(Cli, TimeoutStopsWithExitCode6AndWritesNothing) {
     s << std::ifstream(out + "/decomposition.json").rdbuf();
     return s.str();
   }();
-  for (const std::string command : {"molds " + out + " --wall 7", "check " + out}) {
+  for (const std::string& command : {"molds " + out + " --wall 7", "check " + out}) {
     const RunResult stopped = run("--timeout 0.001 " + command);
     EXPECT_EQ(stopped.exit_code, 6) << command << ": " << stopped.err;
     EXPECT_NE(stopped.err.find("time limit of 0.001 s reached"), std::string::npos) << stopped.err;
@@ -388,9 +396,7 @@ TEST(Cli, TimeoutStopsWithExitCode6AndWritesNothing) {
 
 TEST(Cli, CubeGivesOnePartAndTheContract) {
   const std::string dir = test::temp_dir("cube");
-  write_text(dir + "/cube.obj", cube_obj());
-  const RunResult r = run("decompose " + dir + "/cube.obj -o " + dir +
-                          "/out --tets 2000 --directions 64 --restarts 2 --quiet");
+  const RunResult r = decompose_cube(dir);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_TRUE(r.err.empty()) << r.err;
   EXPECT_TRUE(fs::exists(dir + "/out/decomposition.json"));
@@ -411,9 +417,7 @@ TEST(Cli, CubeGivesOnePartAndTheContract) {
 
 TEST(Cli, NoMoldsSkipsThemAndMoldsBuildsThemLater) {
   const std::string dir = test::temp_dir("cube_molds");
-  write_text(dir + "/cube.obj", cube_obj());
-  RunResult r = run("decompose " + dir + "/cube.obj -o " + dir +
-                    "/out --tets 2000 --directions 64 --restarts 2 --quiet --no-molds");
+  RunResult r = decompose_cube(dir, " --no-molds");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_FALSE(fs::exists(dir + "/out/molds"));
   std::stringstream before;
@@ -449,12 +453,8 @@ std::string read_text(const std::string& path) {
 
 TEST(Cli, MoldsRefusesABadFolderBeforeAnyWorkAndLeavesItUntouched) {
   const std::string dir = test::temp_dir("molds_bad");
-  write_text(dir + "/cube.obj", cube_obj());
   write_text(dir + "/open.obj", cube_obj(1));
-  ASSERT_EQ(run("decompose " + dir + "/cube.obj -o " + dir +
-                "/out --tets 2000 --directions 64 --restarts 2 --quiet --no-molds")
-                .exit_code,
-            0);
+  ASSERT_EQ(decompose_cube(dir, " --no-molds").exit_code, 0);
   const std::string json_path = dir + "/out/decomposition.json";
   const std::string good = read_text(json_path);
   fs::create_directory_symlink(dir + "/out/parts", dir + "/out/linked");
@@ -510,9 +510,7 @@ TEST(Cli, MoldsRefusesABadFolderBeforeAnyWorkAndLeavesItUntouched) {
 // a bad folder with a one-line error, writing nothing.
 TEST(Cli, ReportIsWrittenWithTheFolderAndRefusesABadOne) {
   const std::string dir = test::temp_dir("report");
-  write_text(dir + "/cube.obj", cube_obj());
-  RunResult r = run("decompose " + dir + "/cube.obj -o " + dir +
-                    "/out --tets 2000 --directions 64 --restarts 2 --quiet");
+  RunResult r = decompose_cube(dir);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::string page = dir + "/out/report.html";
   const std::string html = read_text(page);
