@@ -14,6 +14,7 @@
 #include "dhfcast/directions.h"
 #include "dhfcast/error.h"
 #include "dhfcast/tets.h"
+#include "reduce_parts.h"
 #include "support/test_support.h"
 
 namespace dhfcast {
@@ -43,7 +44,8 @@ LabelProblem random_problem(std::mt19937_64& rng, int nodes, int labels) {
 }
 
 // Calls f on every labeling of n nodes with k labels.
-void for_each_labeling(int n, int k, const std::function<void(const std::vector<std::int32_t>&)>& f) {
+void for_each_labeling(int n, int k,
+                       const std::function<void(const std::vector<std::int32_t>&)>& f) {
   std::vector<std::int32_t> l(n, 0);
   for (;;) {
     f(l);
@@ -221,10 +223,9 @@ TEST(Segment, TwoOverlappingHalvesMeetInTheMiddle) {
   // 40 mm long bar; direction 0 is feasible for x < 24, direction 1 for x > 16. The data cost
   // pushes each label away from its infeasible side, so the cut lands in the middle.
   const TetMesh bar = grid_tets(20, 5, 5, 2.0);
-  const AccessibilityField f = field_of(bar, 2, [](int d, const Vec3& p) {
-    return d == 0 ? p.x() < 24.0 : p.x() > 16.0;
-  });
-  const Labeling l = segment(bar, f, {.c_mm = 5.0, .restarts = 3});
+  const AccessibilityField f =
+      field_of(bar, 2, [](int d, const Vec3& p) { return d == 0 ? p.x() < 24.0 : p.x() > 16.0; });
+  const Labeling l = segment(bar, f, {}, {.c_mm = 5.0, .restarts = 3});
   // Every candidate is returned, ranked: fewest parts first, and the chosen one leads.
   ASSERT_GE(l.candidates.size(), 3u);
   EXPECT_EQ(l.candidates.front().label, l.label);
@@ -259,7 +260,7 @@ TEST(Segment, AThirdLabelThatOnlyLowersTheDataCostIsSharedOut) {
     return d == 0 ? p.x() < 26.0 : d == 1 ? p.x() > 22.0 : p.x() > 12.0 && p.x() < 36.0;
   });
   const SegmentOptions opts{.alpha = 50.0, .c_mm = 5.0, .restarts = 3};
-  const Labeling l = segment(bar, f, opts);
+  const Labeling l = segment(bar, f, {}, opts);
   EXPECT_EQ(l.num_components, 2);
   EXPECT_EQ(l.num_labels, 2);
   for (std::int32_t t = 0; t < num_tets(bar); ++t) {
@@ -298,7 +299,7 @@ TEST(Segment, DuplicateAndDominatedDirectionsAreNotCandidates) {
   const AccessibilityField f = field_of(cube, 5, [](int d, const Vec3& p) {
     return d == 0 || d == 1 || (d == 2 && p.y() > 4.0) || (d == 4 && p.x() < 6.0);
   });
-  const Labeling l = segment(cube, f, {.restarts = 2});
+  const Labeling l = segment(cube, f, {}, {.restarts = 2});
   EXPECT_EQ(l.candidate_labels, 1);
   EXPECT_EQ(l.num_labels, 1);
   EXPECT_EQ(l.num_components, 1);
@@ -307,15 +308,14 @@ TEST(Segment, DuplicateAndDominatedDirectionsAreNotCandidates) {
   const AccessibilityField g = field_of(cube, 3, [](int d, const Vec3& p) {
     return (d == 0 && p.x() < 8.0) || (d == 1 && p.x() > 4.0) || (d == 2 && p.x() > 6.0);
   });
-  EXPECT_EQ(segment(cube, g, {.restarts = 2}).candidate_labels, 2);
+  EXPECT_EQ(segment(cube, g, {}, {.restarts = 2}).candidate_labels, 2);
 }
 
 TEST(Segment, TetsFeasibleForNoDirectionAreUnlabeled) {
   const TetMesh bar = grid_tets(12, 3, 3, 2.0);
-  const AccessibilityField f = field_of(bar, 2, [](int d, const Vec3& p) {
-    return d == 0 ? p.x() < 10.0 : p.x() > 14.0;
-  });
-  const Labeling l = segment(bar, f, {.restarts = 2});
+  const AccessibilityField f =
+      field_of(bar, 2, [](int d, const Vec3& p) { return d == 0 ? p.x() < 10.0 : p.x() > 14.0; });
+  const Labeling l = segment(bar, f, {}, {.restarts = 2});
   for (std::int32_t t = 0; t < num_tets(bar); ++t) {
     const double x = barycentre(bar, t).x();
     EXPECT_EQ(l.label[t], x < 10.0 ? 0 : x > 14.0 ? 1 : -1) << "x = " << x;
@@ -325,7 +325,7 @@ TEST(Segment, TetsFeasibleForNoDirectionAreUnlabeled) {
 
 TEST(Segment, NothingFeasibleGivesNoLabels) {
   const TetMesh cube = grid_tets(2, 2, 2, 1.0);
-  const Labeling l = segment(cube, field_of(cube, 3, [](int, const Vec3&) { return false; }));
+  const Labeling l = segment(cube, field_of(cube, 3, [](int, const Vec3&) { return false; }), {});
   EXPECT_EQ(l.candidate_labels, 0);
   EXPECT_EQ(l.num_components, 0);
   for (std::int32_t label : l.label) EXPECT_EQ(label, -1);
@@ -334,11 +334,11 @@ TEST(Segment, NothingFeasibleGivesNoLabels) {
 TEST(Segment, RejectsBadOptions) {
   const TetMesh cube = grid_tets(2, 2, 2, 1.0);
   const AccessibilityField f = field_of(cube, 1, [](int, const Vec3&) { return true; });
-  EXPECT_THROW(segment(cube, f, {.restarts = 0}), Error);
-  EXPECT_THROW(segment(cube, f, {.lambda = -1.0}), Error);
-  EXPECT_THROW(segment(cube, f, {.beta_mm = -1.0}), Error);
-  EXPECT_THROW(segment(cube, f, {.c_mm = 0.0}), Error);
-  EXPECT_THROW(segment(grid_tets(1, 1, 1, 1.0), f), Error);  // field of another mesh
+  EXPECT_THROW(segment(cube, f, {}, {.restarts = 0}), Error);
+  EXPECT_THROW(segment(cube, f, {}, {.lambda = -1.0}), Error);
+  EXPECT_THROW(segment(cube, f, {}, {.beta_mm = -1.0}), Error);
+  EXPECT_THROW(segment(cube, f, {}, {.c_mm = 0.0}), Error);
+  EXPECT_THROW(segment(grid_tets(1, 1, 1, 1.0), f, {}), Error);  // field of another mesh
 }
 
 // Checks a labeling against its field, and returns the parts recounted independently.
@@ -357,14 +357,45 @@ void expect_consistent(const TetMesh& tets, const AccessibilityField& f, const L
   EXPECT_GE(l.num_components, l.num_labels);
 }
 
+// --- the part reduction keeps every label one stretch per line ---
+
+TEST(ReduceParts, RefusesAMergeThatPutsAPartBetweenTwoPiecesOfALabel) {
+  // Nodes 0, 1, 2 lie on one line, in that order; node 3 lies beside it, touching 0 and 2.
+  // Labels: 0 and 3 take A (one part), 1 takes B, 2 takes C and would also allow A. Merging
+  // C's part into A makes the line meet A, leave it at B and meet it again.
+  constexpr std::int32_t A = 0, B = 1, C = 2;
+  LabelProblem p;
+  p.num_nodes = 4;
+  p.num_labels = 3;
+  p.data.assign(12, kInf);
+  const auto allow = [&](std::int32_t node, std::int32_t label) { p.data[label * 4 + node] = 0.0; };
+  allow(0, A), allow(1, B), allow(2, C), allow(2, A), allow(3, A);
+  p.edges = {{0, 1, 1.0}, {1, 2, 1.0}, {2, 3, 1.0}, {3, 0, 1.0}};
+  p.label_cost.assign(3, 0.0);
+  const std::vector<std::array<std::int32_t, 4>> faces = {
+      {1, 3, -1, -1}, {0, 2, -1, -1}, {1, 3, -1, -1}, {0, 2, -1, -1}};
+  const std::vector<Vec3> centres = {{0, 0, 0}, {0, 0, 1}, {0, 0, 2}, {1, 0, 1}};
+  const LineSteps column{.up = {1, 2, -1, -1}, .down = {-1, 0, 1, -1}};
+
+  std::vector<std::int32_t> without_lines = {A, B, C, A};
+  detail::PartReducer(p, faces, {1.0, 1.0, 1.0, 1.0}, centres).reduce(without_lines, 1);
+  EXPECT_EQ(without_lines, (std::vector<std::int32_t>{A, B, A, A}));  // the move exists
+
+  p.line_steps = [&](std::int32_t) -> const LineSteps& { return column; };
+  std::vector<std::int32_t> with_lines = {A, B, C, A};
+  detail::PartReducer(p, faces, {1.0, 1.0, 1.0, 1.0}, centres).reduce(with_lines, 1);
+  EXPECT_EQ(with_lines, (std::vector<std::int32_t>{A, B, C, A}));
+}
+
 TEST(SegmentRealMesh, ElephantGivesFewFeasiblePartsWhateverTheThreadCount) {
   const std::string path = test::cgal_mesh("elephant.off");
   if (path.empty()) GTEST_SKIP() << "CGAL data set not installed";
   const TriMesh elephant = test::load_scaled(path, 100.0);
   const TetMesh tets = tetrahedralize(elephant, {.target_tets = 15000});
-  const AccessibilityField f = compute_accessibility(elephant, tets, fibonacci_directions(128));
+  const std::vector<Vec3> directions = fibonacci_directions(128);
+  const AccessibilityField f = compute_accessibility(elephant, tets, directions);
   std::vector<double> seen;
-  const Labeling l = segment(tets, f, {}, [&](double x) { seen.push_back(x); });
+  const Labeling l = segment(tets, f, directions, {}, [&](double x) { seen.push_back(x); });
   expect_consistent(tets, f, l);
   EXPECT_LE(l.candidate_labels, 128);
   EXPECT_LE(l.num_components, 7);  // the paper reports 7 parts for this model
@@ -406,7 +437,7 @@ TEST(SegmentRealMesh, ElephantGivesFewFeasiblePartsWhateverTheThreadCount) {
   }
 
   tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
-  const Labeling single = segment(tets, f);
+  const Labeling single = segment(tets, f, directions);
   EXPECT_EQ(single.label, l.label);
   EXPECT_EQ(single.energy, l.energy);
   EXPECT_EQ(single.best_restart, l.best_restart);

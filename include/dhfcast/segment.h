@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "dhfcast/access.h"
@@ -11,10 +12,10 @@ namespace dhfcast {
 
 // Options for segment(). Defaults are the paper's and are written to decomposition.json.
 struct SegmentOptions {
-  double alpha = 5.0;      // data-cost scale (eq. 3)
-  double c_mm = 10.0;      // width of the data-cost Gaussian (eq. 3)
-  double beta_mm = 6.0;    // smoothness: beta * shared face area, beta^2 (1 + AO len) on seams
-  double lambda = 0.01;    // label cost: lambda * total volume per label used
+  double alpha = 5.0;          // data-cost scale (eq. 3)
+  double c_mm = 10.0;          // width of the data-cost Gaussian (eq. 3)
+  double beta_mm = 6.0;        // smoothness: beta * shared face area, beta^2 (1 + AO len) on seams
+  double lambda = 0.01;        // label cost: lambda * total volume per label used
   std::int32_t restarts = 15;  // randomized alpha-expansion runs; the best one is kept
   std::uint32_t seed = 1;      // seeds the restarts; same seed, same result on any thread count
 
@@ -35,14 +36,14 @@ struct LabelingCandidate {
 struct Labeling {
   // label[t]: index of t's direction, or -1 for a tet that is feasible for no direction.
   std::vector<std::int32_t> label;
-  std::int32_t num_labels = 0;      // distinct directions used
-  std::int32_t num_components = 0;  // connected components of equal label through shared faces
-                                    // (= parts); tets labeled -1 belong to none
-  double energy = 0.0;              // eq. 1 of the best restart (infeasible tets excluded)
+  std::int32_t num_labels = 0;        // distinct directions used
+  std::int32_t num_components = 0;    // connected components of equal label through shared faces
+                                      // (= parts); tets labeled -1 belong to none
+  double energy = 0.0;                // eq. 1 of the best restart (infeasible tets excluded)
   std::int32_t candidate_labels = 0;  // directions left after removing duplicate and dominated
                                       // feasibility sets
-  std::int32_t best_restart = 0;  // the chosen candidate: r < restarts is randomized restart r,
-                                  // restarts + c the c-th covering candidate (see segment())
+  std::int32_t best_restart = 0;      // the chosen candidate: r < restarts is randomized restart r,
+                                      // restarts + c the c-th covering candidate (see segment())
   // Every candidate, best first in segment()'s ranking (the chosen one is candidates[0]), for a
   // caller that chooses by what comes later (how far each is from double height fields once
   // repaired, say).
@@ -56,7 +57,11 @@ struct Labeling {
 // covers by volume). Eq. 1 often prefers more, smaller parts than needed (a part near its
 // neighbours' infeasible regions lowers their data cost), so each candidate's part count is then
 // lowered by moves that keep every tet feasible (merging parts, sharing a part among its
-// neighbours, joining two parts of one label). The best candidate has the fewest parts, ties
+// neighbours, joining two parts of one label). Parts are kept double height fields as they are
+// formed: with `directions` (those `field` was computed for), the lines of each label along its
+// direction (LineSteps) constrain every expansion move and every part-removing move, so neither
+// puts a part between two pieces of a label along that label's direction. The best candidate
+// has the fewest parts, ties
 // broken by the smallest variance of part volumes, then by energy, then by index (decompose()
 // chooses again among the first-ranked candidates, by how close to double height fields each
 // comes once repaired). Labels are
@@ -67,7 +72,8 @@ struct Labeling {
 // opts.validate() does, Error{InvalidInput} when the field's or the adjacency's size does not
 // match the tets.
 Labeling segment(const TetMesh& tets, const AccessibilityField& field,
-                 const SegmentOptions& opts = {}, const Progress& progress = {});
+                 const std::vector<Vec3>& directions, const SegmentOptions& opts = {},
+                 const Progress& progress = {});
 
 // --- The multi-label solver under segment(), usable on any graph ---
 
@@ -75,6 +81,14 @@ Labeling segment(const TetMesh& tets, const AccessibilityField& field,
 struct PottsEdge {
   std::int32_t a = 0, b = 0;
   double weight = 0.0;  // >= 0
+};
+
+// Lines through the nodes along one label's direction: up[i] is the node the line from node i
+// along the direction enters next, down[i] the one against it; -1 where the line leaves the
+// nodes. A part of one label is a double height field along its direction when no line meets
+// it, leaves it and meets it again.
+struct LineSteps {
+  std::vector<std::int32_t> up, down;
 };
 
 // Minimize over labelings l: sum_i data(i, l_i) + sum_edges weight [l_a != l_b]
@@ -86,6 +100,11 @@ struct LabelProblem {
   std::vector<double> data;
   std::vector<PottsEdge> edges;    // a pair may appear several times: its weights add up
   std::vector<double> label_cost;  // num_labels values, >= 0
+  // Optional lines per label (see LineSteps); when set, an expansion move opens no gap in a
+  // label's nodes along its lines: a node taking label a brings along the nodes between it and
+  // a's nodes ahead or behind it, and a node leaving label b from inside b's stretch of a line
+  // takes the rest of that stretch, ahead of it, along. Called from several threads.
+  std::function<const LineSteps&(std::int32_t label)> line_steps;
 };
 
 // Energy of `labels` (one per node); +infinity when a node has a forbidden or out-of-range

@@ -70,7 +70,7 @@ Decomposition decompose(const TriMesh& solid, const DecomposeOptions& opts,
   // --- 3. segmentation ---
   t0 = Clock::now();
   report("segmentation", 0.0);
-  d.labeling = segment(d.tets, d.access, opts.segment, inner("segmentation"));
+  d.labeling = segment(d.tets, d.access, d.directions, opts.segment, inner("segmentation"));
   report("segmentation", 1.0);
   d.timings.segmentation = seconds_since(t0);
 

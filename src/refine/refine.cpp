@@ -456,7 +456,7 @@ Refinement refine(const TriMesh& solid, const TetMesh& tets, const std::vector<V
                       std::vector<std::int32_t>(sub.tets.size(), 0), {{Vec3::UnitZ()}});
     const AccessibilityField sub_field =
         compute_accessibility(shell.at(0).mesh, sub, directions, access_opts);
-    const Labeling sub_labeling = segment(sub, sub_field, segment_opts);
+    const Labeling sub_labeling = segment(sub, sub_field, directions, segment_opts);
     for (std::size_t i = 0; i < component.size(); ++i) {
       region_label[component[i]] = sub_labeling.label[i];
       region[component[i]] = info.id;

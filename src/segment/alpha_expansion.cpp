@@ -61,8 +61,9 @@ void check_problem(const LabelProblem& p) {
   if (p.num_nodes < 0 || p.num_labels < 0) bad_input("negative size");
   const std::size_t n = static_cast<std::size_t>(p.num_nodes);
   const std::size_t k = static_cast<std::size_t>(p.num_labels);
-  if (p.data.size() != n * k) bad_input("data has " + std::to_string(p.data.size()) +
-                                        " costs, expected num_nodes * num_labels");
+  if (p.data.size() != n * k)
+    bad_input("data has " + std::to_string(p.data.size()) +
+              " costs, expected num_nodes * num_labels");
   if (p.label_cost.size() != k) bad_input("label_cost needs one value per label");
   for (double c : p.label_cost) {
     if (!(c >= 0.0) || !std::isfinite(c)) {
@@ -82,25 +83,58 @@ void check_problem(const LabelProblem& p) {
   }
 }
 
+// ahead[i] = 1 when the line from node i along `step` meets a node labeled l after i, before it
+// leaves the nodes (a line that loops back counts as leaving).
+void mark_label_ahead(const std::vector<std::int32_t>& step, const std::vector<std::int32_t>& label,
+                      std::int32_t l, std::vector<std::int8_t>& ahead,
+                      std::vector<std::int32_t>& stack) {
+  const auto n = static_cast<std::int32_t>(step.size());
+  constexpr std::int8_t kUnknown = -1, kOnStack = -2;
+  ahead.assign(n, kUnknown);
+  for (std::int32_t i = 0; i < n; ++i) {
+    if (ahead[i] != kUnknown) continue;
+    stack.clear();
+    for (std::int32_t j = i; j >= 0 && ahead[j] == kUnknown; j = step[j]) {
+      ahead[j] = kOnStack;
+      stack.push_back(j);
+    }
+    for (auto p = stack.rbegin(); p != stack.rend(); ++p) {
+      const std::int32_t next = step[*p];
+      ahead[*p] = next >= 0 && (label[next] == l || ahead[next] == 1) ? 1 : 0;
+    }
+  }
+}
+
 }  // namespace
 
 // Per-run mutable state; the scratch arrays are left cleared after every expansion.
 struct ExpansionSolver::State {
   State(std::int32_t n, std::int32_t k)
-      : label(n, -1), cost(n, 0.0), count(k, 0), active_count(k, 0), moved_count(k, 0), aux(k, -1), gid(n, -1),
-        moving(n, 0), graph(n + k + 1, 4 * n + 1, &on_maxflow_error) {}
+      : label(n, -1),
+        cost(n, 0.0),
+        count(k, 0),
+        active_count(k, 0),
+        moved_count(k, 0),
+        aux(k, -1),
+        gid(n, -1),
+        moving(n, 0),
+        graph(n + k + 1, 4 * n + 1, &on_maxflow_error) {}
   std::mt19937_64 rng;
   std::vector<std::int32_t> label;
-  std::vector<double> cost;          // data cost of each node's current label
-  std::vector<std::int32_t> count;   // nodes per label
+  std::vector<double> cost;                // data cost of each node's current label
+  std::vector<std::int32_t> count;         // nodes per label
   std::vector<std::int32_t> active_count;  // scratch: active nodes per label
   std::vector<std::int32_t> moved_count;   // scratch: nodes per label that switch to alpha
-  std::vector<std::int32_t> aux;     // scratch: label-cost node of a label in the graph, or -1
-  std::vector<std::int32_t> gid;     // scratch: graph node of an active node, or -1
-  std::vector<char> moving;          // scratch: the node switches to alpha
+  std::vector<std::int32_t> aux;         // scratch: label-cost node of a label in the graph, or -1
+  std::vector<std::int32_t> gid;         // scratch: graph node of an active node, or -1
+  std::vector<char> moving;              // scratch: the node switches to alpha
   std::vector<std::int32_t> candidates;  // the nodes an expansion may move, ascending
   std::vector<std::int32_t> active, present, moved, queue;
   std::vector<std::int8_t> hops;
+  // scratch of the line constraints: alpha's nodes ahead of / behind a node along alpha's
+  // lines, and the same for a label in the move along its own lines
+  std::vector<std::int8_t> alpha_ahead, alpha_behind, own_ahead, own_behind;
+  std::vector<std::int32_t> stack;
   double energy = 0.0;
   FlowGraph graph;
 };
@@ -322,6 +356,7 @@ bool ExpansionSolver::expand(State& s, std::int32_t alpha) const {
     if (a >= 0) g.add_edge(k, a, kInf, 0.0);
     if (alpha_aux >= 0) g.add_edge(alpha_aux, k, kInf, 0.0);
   }
+  if (problem_.line_steps) add_line_constraints(s, alpha);
   g.maxflow();
 
   // --- 3. exact energy change of the move ---
@@ -372,6 +407,41 @@ bool ExpansionSolver::expand(State& s, std::int32_t alpha) const {
   for (std::int32_t i : s.active) s.gid[i] = -1;
   for (std::int32_t i : s.moved) s.moving[i] = 0;
   return accept;
+}
+
+// Hard terms that keep each label's nodes one stretch per line where they were (see
+// LabelProblem::line_steps): "node i takes alpha only if node j does" is an infinite edge j -> i,
+// and one whose j cannot move forbids i the move.
+void ExpansionSolver::add_line_constraints(State& s, std::int32_t alpha) const {
+  FlowGraph& g = s.graph;
+  const auto needs = [&](std::int32_t k, std::int32_t j) {
+    if (s.gid[j] >= 0)
+      g.add_edge(s.gid[j], k, kInf, 0.0);
+    else
+      g.add_tweights(k, kInf, 0.0);
+  };
+  // A node taking alpha brings the nodes between it and alpha's nodes along alpha's lines.
+  const LineSteps& a = problem_.line_steps(alpha);
+  mark_label_ahead(a.up, s.label, alpha, s.alpha_ahead, s.stack);
+  mark_label_ahead(a.down, s.label, alpha, s.alpha_behind, s.stack);
+  for (std::size_t k = 0; k < s.active.size(); ++k) {
+    const std::int32_t i = s.active[k];
+    const auto gk = static_cast<std::int32_t>(k);
+    if (s.alpha_ahead[i] == 1 && s.label[a.up[i]] != alpha) needs(gk, a.up[i]);
+    if (s.alpha_behind[i] == 1 && s.label[a.down[i]] != alpha) needs(gk, a.down[i]);
+  }
+  // A node leaving label b from inside b's stretch of a line takes the stretch ahead of it along.
+  for (std::int32_t b : s.present) {
+    const LineSteps& lines = problem_.line_steps(b);
+    mark_label_ahead(lines.up, s.label, b, s.own_ahead, s.stack);
+    mark_label_ahead(lines.down, s.label, b, s.own_behind, s.stack);
+    for (std::size_t k = 0; k < s.active.size(); ++k) {
+      const std::int32_t i = s.active[k];
+      if (s.label[i] != b || s.own_ahead[i] != 1 || s.own_behind[i] != 1) continue;
+      const std::int32_t up = lines.up[i];
+      if (s.label[up] == b) needs(static_cast<std::int32_t>(k), up);
+    }
+  }
 }
 
 void ExpansionSolver::mark_band(State& s) const {
@@ -449,17 +519,18 @@ std::vector<ExpansionRun> ExpansionSolver::run_all(std::uint64_t seed, std::int3
   const std::thread::id caller = std::this_thread::get_id();
   std::atomic<std::int32_t> finished{0};
   // One task per run: each has its own RNG and graph, so the runs do not depend on scheduling.
-  tbb::parallel_for(tbb::blocked_range<std::int32_t>(0, restarts, 1),
-                    [&](const tbb::blocked_range<std::int32_t>& range) {
-                      for (std::int32_t r = range.begin(); r < range.end(); ++r) {
-                        runs[r] = run(restart_seed(seed, r));
-                        const std::int32_t done = ++finished;
-                        if (progress && std::this_thread::get_id() == caller) {
-                          progress(static_cast<double>(done) / restarts);
-                        }
-                      }
-                    },
-                    tbb::simple_partitioner());
+  tbb::parallel_for(
+      tbb::blocked_range<std::int32_t>(0, restarts, 1),
+      [&](const tbb::blocked_range<std::int32_t>& range) {
+        for (std::int32_t r = range.begin(); r < range.end(); ++r) {
+          runs[r] = run(restart_seed(seed, r));
+          const std::int32_t done = ++finished;
+          if (progress && std::this_thread::get_id() == caller) {
+            progress(static_cast<double>(done) / restarts);
+          }
+        }
+      },
+      tbb::simple_partitioner());
   if (progress) progress(1.0);
   return runs;
 }

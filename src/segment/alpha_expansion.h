@@ -44,6 +44,7 @@ class ExpansionSolver {
   void set_labels(State& s, std::vector<std::int32_t> labels) const;
   void mark_band(State& s) const;
   bool expand(State& s, std::int32_t alpha) const;
+  void add_line_constraints(State& s, std::int32_t alpha) const;
 
   const LabelProblem& problem_;
   std::int32_t n_ = 0, k_ = 0;

@@ -18,8 +18,7 @@ class PartReducer {
   // nodes sharing a face with node i (-1: none), which is what makes two tets one part.
   // Keeps a reference to `problem`, which must outlive it.
   // centre_mm[i]: a point of node i (its barycentre), for distances along paths of nodes.
-  PartReducer(const LabelProblem& problem,
-              std::vector<std::array<std::int32_t, 4>> face_neighbors,
+  PartReducer(const LabelProblem& problem, std::vector<std::array<std::int32_t, 4>> face_neighbors,
               std::vector<double> volume_mm3, std::vector<Vec3> centre_mm);
 
   // Removes parts, smallest first, until no move applies.
@@ -30,7 +29,10 @@ class PartReducer {
   // label, nearest first, when together they reach all of it; (5) the part takes its own label
   // or another part's label allowed on all of it, and is joined to the nearest other part of
   // that label by the shortest path of nodes allowing it (widened by one layer where allowed),
-  // kept only when it lowers the part count. Deterministic in (labels, seed).
+  // kept only when it lowers the part count. With the problem's line_steps, a move is made only
+  // when it leaves about no more lines through the nodes it relabels meeting one label, leaving
+  // it and meeting it again (opens_gaps()): a part is not merged into a label that lies on both
+  // sides of another part. Deterministic in (labels, seed).
   void reduce(std::vector<std::int32_t>& labels, std::uint64_t seed) const;
 
  private:
@@ -41,8 +43,13 @@ class PartReducer {
   bool flood_from_neighbours(const Parts& parts, std::int32_t p,
                              std::vector<std::int32_t>& labels) const;
   bool bridge(const Parts& parts, std::int32_t p, std::vector<std::int32_t>& labels) const;
-  bool share_among_neighbours(const Parts& parts, std::int32_t p,
-                              std::vector<std::int32_t>& labels, std::uint64_t seed) const;
+  bool share_among_neighbours(const Parts& parts, std::int32_t p, std::vector<std::int32_t>& labels,
+                              std::uint64_t seed) const;
+  // Whether relabeling `before` to `after` leaves more lines through the changed nodes meeting
+  // one label, leaving it and meeting it again (see LabelProblem::line_steps); false without
+  // lines.
+  bool opens_gaps(const std::vector<std::int32_t>& before,
+                  const std::vector<std::int32_t>& after) const;
   // Energy change (data and smoothness; label costs are left to the caller) of giving every
   // node of `nodes` (flagged in `inside`) the label `l`.
   double relabel_cost(const std::vector<std::int32_t>& nodes, const std::vector<char>& inside,

@@ -8,13 +8,15 @@
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <numeric>
 #include <string>
 #include <tuple>
 
 #include "alpha_expansion.h"
-#include "reduce_parts.h"
 #include "dhfcast/error.h"
+#include "reduce_parts.h"
 
 namespace dhfcast {
 namespace {
@@ -146,14 +148,74 @@ std::vector<std::vector<std::int32_t>> covering_label_sets(const LabelProblem& p
           for (std::uint64_t bits = cols[l * words + w] & open[w]; bits != 0; bits &= bits - 1)
             gain_mm3[l] += volume_mm3[w * 64 + std::countr_zero(bits)];
       });
-      set.push_back(static_cast<std::int32_t>(
-          std::max_element(gain_mm3.begin(), gain_mm3.end()) - gain_mm3.begin()));
+      set.push_back(static_cast<std::int32_t>(std::max_element(gain_mm3.begin(), gain_mm3.end()) -
+                                              gain_mm3.begin()));
     }
     std::sort(set.begin(), set.end());
     if (std::find(sets.begin(), sets.end(), set) == sets.end()) sets.push_back(std::move(set));
   }
   return sets;
 }
+
+// The lines of each label through the nodes (LineSteps), made when an expansion first needs them:
+// one step from a tet's barycentre along a direction leaves through the face whose outward
+// area vector has the largest component along it.
+class LineStepsCache {
+ public:
+  LineStepsCache(const TetMesh& tets, const std::vector<std::int32_t>& tet_of,
+                 const std::vector<std::int32_t>& node_of, std::vector<Vec3> label_direction)
+      : tets_(tets),
+        tet_of_(tet_of),
+        node_of_(node_of),
+        direction_(std::move(label_direction)),
+        once_(std::make_unique<std::once_flag[]>(direction_.size())),
+        steps_(direction_.size()) {
+    face_area_.resize(tet_of.size());
+    for (std::size_t i = 0; i < tet_of.size(); ++i) {
+      const Tet& tet = tets.tets[tet_of[i]];
+      for (int f = 0; f < 4; ++f) {
+        const Vec3& a = tets.vertices[tet[kTetFaces[f][0]]];
+        const Vec3& b = tets.vertices[tet[kTetFaces[f][1]]];
+        const Vec3& c = tets.vertices[tet[kTetFaces[f][2]]];
+        face_area_[i][f] = 0.5 * (b - a).cross(c - a);
+      }
+    }
+  }
+
+  const LineSteps& operator()(std::int32_t l) const {
+    std::call_once(once_[l], [&] { make(l); });
+    return steps_[l];
+  }
+
+ private:
+  void make(std::int32_t l) const {
+    const Vec3& d = direction_[l];
+    const std::size_t n = tet_of_.size();
+    LineSteps& s = steps_[l];
+    s.up.assign(n, -1);
+    s.down.assign(n, -1);
+    for (std::size_t i = 0; i < n; ++i) {
+      int up = -1, down = -1;
+      double most = 0.0, least = 0.0;
+      for (int f = 0; f < 4; ++f) {
+        const double x = face_area_[i][f].dot(d);
+        if (x > most) most = x, up = f;
+        if (x < least) least = x, down = f;
+      }
+      const auto& neighbors = tets_.neighbors[tet_of_[i]];
+      if (up >= 0 && neighbors[up] >= 0) s.up[i] = node_of_[neighbors[up]];
+      if (down >= 0 && neighbors[down] >= 0) s.down[i] = node_of_[neighbors[down]];
+    }
+  }
+
+  const TetMesh& tets_;
+  const std::vector<std::int32_t>& tet_of_;
+  const std::vector<std::int32_t>& node_of_;
+  std::vector<Vec3> direction_;
+  std::vector<std::array<Vec3, 4>> face_area_;
+  std::unique_ptr<std::once_flag[]> once_;
+  mutable std::vector<LineSteps> steps_;
+};
 
 // Minimizes eq. 1 with only the labels in `subset` (which together allow every node); returns
 // the labeling in the full problem's labels.
@@ -165,6 +227,10 @@ std::vector<std::int32_t> solve_with_labels(const LabelProblem& problem,
   sub.num_nodes = problem.num_nodes;
   sub.num_labels = static_cast<std::int32_t>(subset.size());
   sub.edges = problem.edges;
+  if (problem.line_steps)
+    sub.line_steps = [&](std::int32_t l) -> const LineSteps& {
+      return problem.line_steps(subset[l]);
+    };
   for (std::int32_t l : subset) {
     sub.data.insert(sub.data.end(), problem.data.begin() + l * n,
                     problem.data.begin() + (l + 1) * n);
@@ -185,7 +251,8 @@ void SegmentOptions::validate() const {
   require_option(restarts >= 1 && restarts <= 1000, "--restarts must be between 1 and 1000");
 }
 
-Labeling segment(const TetMesh& tets, const AccessibilityField& field, const SegmentOptions& opts,
+Labeling segment(const TetMesh& tets, const AccessibilityField& field,
+                 const std::vector<Vec3>& directions, const SegmentOptions& opts,
                  const Progress& progress) {
   opts.validate();
   const auto num_tets = static_cast<std::int32_t>(tets.tets.size());
@@ -257,6 +324,12 @@ Labeling segment(const TetMesh& tets, const AccessibilityField& field, const Seg
 
   // --- 5. label cost (§4.2.3), the randomized restarts and the covering candidates ---
   problem.label_cost.assign(num_labels, opts.lambda * total_volume(tets));
+  std::vector<Vec3> label_direction;
+  for (std::int32_t d : dirs)
+    label_direction.push_back(d < std::ssize(directions) ? directions[d] : Vec3::Zero());
+  const LineStepsCache line_steps(tets, tet_of, node_of, std::move(label_direction));
+  if (!directions.empty())
+    problem.line_steps = [&](std::int32_t l) -> const LineSteps& { return line_steps(l); };
   const detail::ExpansionSolver solver(problem);
   const Progress restarts_progress = [&](double f) {
     if (progress) progress(0.8 * f);
@@ -290,7 +363,7 @@ Labeling segment(const TetMesh& tets, const AccessibilityField& field, const Seg
     for (std::int32_t v : tets.tets[tet_of[n]]) node_centre_mm[n] += 0.25 * tets.vertices[v];
   }
   const detail::PartReducer reducer(problem, std::move(face_nodes), std::move(node_volume_mm3),
-                                     std::move(node_centre_mm));
+                                    std::move(node_centre_mm));
   std::vector<std::vector<std::int32_t>> labels(candidates.size());
   std::vector<PartStats> stats(candidates.size());
   std::vector<double> energy(candidates.size());
@@ -306,7 +379,8 @@ Labeling segment(const TetMesh& tets, const AccessibilityField& field, const Seg
   const auto key = [&](std::size_t r) {
     return std::make_tuple(stats[r].parts, stats[r].volume_variance_mm6, energy[r], r);
   };
-  std::sort(rank.begin(), rank.end(), [&](std::size_t a, std::size_t b) { return key(a) < key(b); });
+  std::sort(rank.begin(), rank.end(),
+            [&](std::size_t a, std::size_t b) { return key(a) < key(b); });
   const std::size_t best = rank.front();
   out.label = labels[best];
   for (std::size_t r : rank)
