@@ -238,7 +238,8 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
             changed = detail::yield_hull(parts, p, other, hull, checked, reason);
           else
             changed = detail::carve_hull(parts, p, hull, checked, reason);
-          // Rounding to float can make the new triangles cross others.
+          // Rounding to float can make the new triangles cross others, in the parts and in the
+          // material carved out (written as a solid of its own).
           if (changed)
             for (const auto& [id, part] : changed->changed)
               if (!crossed[id] && !intersecting_triangles(part.mesh, 1).empty()) {
@@ -246,6 +247,11 @@ Carving carve_dhf_gaps(std::vector<Part>& parts, std::int64_t lines, double epsi
                 changed.reset();
                 break;
               }
+          if (changed && !changed->hole.mesh.triangles.empty() &&
+              !intersecting_triangles(changed->hole.mesh, 1).empty()) {
+            reason = "the void would intersect itself once rounded";
+            changed.reset();
+          }
           if (changed || !broken_by_rounding(reason)) break;
         }
         if (changed) {
