@@ -366,6 +366,36 @@ TEST(LoadSolid, OneFlippedTriangleIsInconsistentlyOriented) {
   expect_invalid(path, "inconsistently oriented: edge (v");
 }
 
+TEST(IntersectingTriangles, BoxesPinchedAtACornerTouchThereAndDoNotThrow) {
+  // Two boxes sharing one corner vertex: not a surface mesh (the vertex is pinched), as a part
+  // can be before its pinches are separated. The contact counts; nothing else does.
+  TriMesh mesh = box();
+  const TriMesh other = test::make_box(kBoxSize, 2.0 * kBoxSize);
+  const auto offset = static_cast<std::int32_t>(mesh.vertices.size());
+  const auto first_box = static_cast<std::int32_t>(mesh.triangles.size());  // its triangles
+  mesh.vertices.insert(mesh.vertices.end(), other.vertices.begin(), other.vertices.end());
+  std::int32_t shared = -1;
+  for (std::int32_t v = 0; v < offset; ++v)
+    if (mesh.vertices[v] == kBoxSize) shared = v;
+  ASSERT_GE(shared, 0);
+  for (Tri t : other.triangles) {
+    for (std::int32_t& v : t) v = other.vertices[v] == kBoxSize ? shared : v + offset;
+    mesh.triangles.push_back(t);
+  }
+  std::vector<std::array<std::int32_t, 2>> pairs;
+  ASSERT_NO_THROW(pairs = intersecting_triangles(mesh, 1000));
+  ASSERT_FALSE(pairs.empty());
+  for (const auto& [a, b] : pairs) {
+    const auto has_shared = [&](std::int32_t t) {
+      return std::find(mesh.triangles[t].begin(), mesh.triangles[t].end(), shared) !=
+             mesh.triangles[t].end();
+    };
+    EXPECT_TRUE(has_shared(a) && has_shared(b)) << a << " " << b;
+    EXPECT_NE(a < first_box, b < first_box) << "one triangle of each box";
+  }
+  EXPECT_TRUE(intersecting_triangles(box(), 1000).empty());
+}
+
 TEST(LoadSolid, OverlappingBoxesSelfIntersect) {
   TriMesh mesh = box();
   const TriMesh other = test::make_box(kBoxSize * 0.5, kBoxSize * 1.5);

@@ -55,8 +55,9 @@ MeshDiagnostics validate_mesh(const TriMesh& mesh);
 std::string part_solid_problem(const TriMesh& mesh);
 
 // Pairs of triangles of `mesh` (ascending indices, at most max_pairs pairs) that intersect other
-// than along the vertices or edge they share; exact predicates. Pre: `mesh` is a surface mesh
-// (every edge in at most two triangles, consistently oriented); else throws Error{Internal}.
+// than along the vertices or edge they share; exact predicates. Where `mesh` is not a surface mesh
+// (an edge in three triangles, a pinched vertex, an edge used twice in one orientation), each
+// fan there gets its own copy of the vertex or edge, and the contact counts as an intersection.
 std::vector<std::array<std::int32_t, 2>> intersecting_triangles(const TriMesh& mesh,
                                                                 unsigned max_pairs);
 

@@ -3,6 +3,8 @@
 #include "cgal_checks.h"
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
+#include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Surface_mesh.h>
 
@@ -30,19 +32,35 @@ bool collinear_exact(const Vec3& a, const Vec3& b, const Vec3& c) {
 }
 
 std::vector<std::array<std::int32_t, 2>> intersecting_pairs(const TriMesh& mesh,
-                                                             unsigned max_pairs) {
+                                                            unsigned max_pairs) {
   SurfaceMesh sm;
   sm.reserve(static_cast<SurfaceMesh::size_type>(mesh.vertices.size()),
              static_cast<SurfaceMesh::size_type>(3 * mesh.triangles.size() / 2),
              static_cast<SurfaceMesh::size_type>(mesh.triangles.size()));
   for (const Vec3& p : mesh.vertices) sm.add_vertex(to_point(p));
   // Faces are added in order, so face index i is triangle i.
+  bool surface = true;
   for (const Tri& t : mesh.triangles) {
-    const FaceIndex f =
-        sm.add_face(SurfaceMesh::Vertex_index(t[0]), SurfaceMesh::Vertex_index(t[1]),
-                    SurfaceMesh::Vertex_index(t[2]));
-    if (f == SurfaceMesh::null_face())
-      throw Error(ErrorCode::Internal, "internal error: the mesh is not a surface mesh");
+    surface = sm.add_face(SurfaceMesh::Vertex_index(t[0]), SurfaceMesh::Vertex_index(t[1]),
+                          SurfaceMesh::Vertex_index(t[2])) != SurfaceMesh::null_face();
+    if (!surface) break;
+  }
+  if (!surface) {
+    // Not a surface mesh (a pinched vertex, an edge in three triangles): CGAL's soup repair
+    // gives each fan its own copy of such a vertex or edge, keeping the triangles' order, so the
+    // contact there counts as an intersection.
+    namespace PMP = CGAL::Polygon_mesh_processing;
+    std::vector<Point> points;
+    for (const Vec3& p : mesh.vertices) points.push_back(to_point(p));
+    std::vector<std::vector<std::size_t>> polygons;
+    for (const Tri& t : mesh.triangles)
+      polygons.push_back({static_cast<std::size_t>(t[0]), static_cast<std::size_t>(t[1]),
+                          static_cast<std::size_t>(t[2])});
+    PMP::orient_polygon_soup(points, polygons);
+    sm.clear();
+    PMP::polygon_soup_to_polygon_mesh(points, polygons, sm);
+    if (sm.number_of_faces() != mesh.triangles.size())
+      throw Error(ErrorCode::Internal, "internal error: a triangle soup could not be meshed");
   }
 
   std::vector<std::pair<FaceIndex, FaceIndex>> found;
