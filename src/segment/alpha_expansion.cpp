@@ -118,6 +118,10 @@ struct ExpansionSolver::State {
         aux(k, -1),
         gid(n, -1),
         moving(n, 0),
+        ahead(k),
+        behind(k),
+        fresh(k, 0),
+        lines(k, nullptr),
         graph(n + k + 1, 4 * n + 1, &on_maxflow_error) {}
   std::mt19937_64 rng;
   std::vector<std::int32_t> label;
@@ -131,9 +135,12 @@ struct ExpansionSolver::State {
   std::vector<std::int32_t> candidates;  // the nodes an expansion may move, ascending
   std::vector<std::int32_t> active, present, moved, queue;
   std::vector<std::int8_t> hops;
-  // scratch of the line constraints: alpha's nodes ahead of / behind a node along alpha's
-  // lines, and the same for a label in the move along its own lines
-  std::vector<std::int8_t> alpha_ahead, alpha_behind, own_ahead, own_behind;
+  // The line constraints' marks per label l: ahead[l][i] / behind[l][i] = 1 when node i's line
+  // along l's direction meets a node labeled l ahead of / behind i. They change only with l's
+  // nodes, so they are kept until a move adds or takes nodes of l (fresh[l] = 0).
+  std::vector<std::vector<std::int8_t>> ahead, behind;
+  std::vector<char> fresh;
+  std::vector<const LineSteps*> lines;  // scratch: each label's lines
   std::vector<std::int32_t> stack;
   double energy = 0.0;
   FlowGraph graph;
@@ -261,6 +268,7 @@ void ExpansionSolver::build_coarse_level() {
 void ExpansionSolver::set_labels(State& s, std::vector<std::int32_t> labels) const {
   s.label = std::move(labels);
   std::fill(s.count.begin(), s.count.end(), 0);
+  std::fill(s.fresh.begin(), s.fresh.end(), 0);
   double e = 0.0;
   for (std::int32_t i = 0; i < n_; ++i) {
     s.cost[i] = problem_.data[static_cast<std::size_t>(s.label[i]) * n_ + i];
@@ -391,6 +399,10 @@ bool ExpansionSolver::expand(State& s, std::int32_t alpha) const {
   // --- 4. accept only a strict decrease (the tolerance absorbs rounding in delta) ---
   const bool accept = delta < -1e-9 * std::abs(s.energy);
   if (accept) {
+    s.fresh[alpha] = 0;
+    for (std::int32_t l : s.present) {
+      if (s.moved_count[l] > 0) s.fresh[l] = 0;
+    }
     for (std::int32_t i : s.moved) {
       --s.count[s.label[i]];
       s.label[i] = alpha;
@@ -420,27 +432,32 @@ void ExpansionSolver::add_line_constraints(State& s, std::int32_t alpha) const {
     else
       g.add_tweights(k, kInf, 0.0);
   };
+  const auto marks = [&](std::int32_t l) -> const LineSteps& {
+    const LineSteps& lines = problem_.line_steps(l);
+    if (!s.fresh[l]) {
+      mark_label_ahead(lines.up, s.label, l, s.ahead[l], s.stack);
+      mark_label_ahead(lines.down, s.label, l, s.behind[l], s.stack);
+      s.fresh[l] = 1;
+    }
+    return lines;
+  };
   // A node taking alpha brings the nodes between it and alpha's nodes along alpha's lines.
-  const LineSteps& a = problem_.line_steps(alpha);
-  mark_label_ahead(a.up, s.label, alpha, s.alpha_ahead, s.stack);
-  mark_label_ahead(a.down, s.label, alpha, s.alpha_behind, s.stack);
+  const LineSteps& a = marks(alpha);
+  const std::vector<std::int8_t>& alpha_ahead = s.ahead[alpha];
+  const std::vector<std::int8_t>& alpha_behind = s.behind[alpha];
   for (std::size_t k = 0; k < s.active.size(); ++k) {
     const std::int32_t i = s.active[k];
     const auto gk = static_cast<std::int32_t>(k);
-    if (s.alpha_ahead[i] == 1 && s.label[a.up[i]] != alpha) needs(gk, a.up[i]);
-    if (s.alpha_behind[i] == 1 && s.label[a.down[i]] != alpha) needs(gk, a.down[i]);
+    if (alpha_ahead[i] == 1 && s.label[a.up[i]] != alpha) needs(gk, a.up[i]);
+    if (alpha_behind[i] == 1 && s.label[a.down[i]] != alpha) needs(gk, a.down[i]);
   }
   // A node leaving label b from inside b's stretch of a line takes the stretch ahead of it along.
-  for (std::int32_t b : s.present) {
-    const LineSteps& lines = problem_.line_steps(b);
-    mark_label_ahead(lines.up, s.label, b, s.own_ahead, s.stack);
-    mark_label_ahead(lines.down, s.label, b, s.own_behind, s.stack);
-    for (std::size_t k = 0; k < s.active.size(); ++k) {
-      const std::int32_t i = s.active[k];
-      if (s.label[i] != b || s.own_ahead[i] != 1 || s.own_behind[i] != 1) continue;
-      const std::int32_t up = lines.up[i];
-      if (s.label[up] == b) needs(static_cast<std::int32_t>(k), up);
-    }
+  for (std::int32_t b : s.present) s.lines[b] = &marks(b);
+  for (std::size_t k = 0; k < s.active.size(); ++k) {
+    const std::int32_t i = s.active[k], b = s.label[i];
+    if (s.ahead[b][i] != 1 || s.behind[b][i] != 1) continue;
+    const std::int32_t up = s.lines[b]->up[i];
+    if (s.label[up] == b) needs(static_cast<std::int32_t>(k), up);
   }
 }
 
