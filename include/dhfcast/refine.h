@@ -81,6 +81,8 @@ struct GapFilling {
 };
 
 // A candidate labeling made into parts (ways cleared, gaps filled), in the order they were made.
+// Its figures are those of its parts bounded by the tets, which the candidates are compared on;
+// the parts written are the kept one's cut from the solid (Refinement::solid_cut).
 struct MadeCandidate {
   std::int32_t restart = 0;  // the segmentation restart it came from
   std::int32_t parts = 0;
@@ -127,10 +129,12 @@ struct Refinement {
 // 2. The candidates the segmentation ranks first (opts.candidates distinct ones) go through the
 //    sandwich repair (absorb_sandwiched_tets()), and are ranked by how close to double height
 //    fields they come (see refine.cpp).
-// 3. The candidate ranked first is made into parts (made manifold, extracted, interfaces
-//    smoothed, cut from the solid, ordered for assembly; ways cleared, gaps filled); when they
+// 3. The candidate ranked first is made into parts bounded by the tets (made manifold,
+//    extracted, interfaces smoothed, ordered for assembly; ways cleared, gaps filled); when they
 //    have no assembly order, gap lines or a tiny part, the next ones in turn, and the best kept.
-// 4. What the label-level repairs leave is mended on the final meshes (carve_dhf_gaps()).
+// 4. The parts kept are made again, cut from the solid (cut_parts_from_solid()): the exact cut
+//    runs once.
+// 5. What the label-level repairs leave is mended on the final meshes (carve_dhf_gaps()).
 // `directions` are the labels' directions; `access` was computed on `tets` for them with
 // access_opts, and `labeling` is segment()'s. `progress` gets fractions in [0, 1).
 // Deterministic: the result does not depend on the thread count.

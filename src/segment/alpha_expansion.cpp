@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "dhfcast/error.h"
+#include "line_walks.h"
 
 namespace dhfcast {
 namespace detail {
@@ -80,28 +81,6 @@ void check_problem(const LabelProblem& p) {
   }
   for (double c : p.data) {
     if (std::isnan(c) || c == -kInf) bad_input("data costs must be numbers or +infinity");
-  }
-}
-
-// ahead[i] = 1 when the line from node i along `step` meets a node labeled l after i, before it
-// leaves the nodes (a line that loops back counts as leaving).
-void mark_label_ahead(const std::vector<std::int32_t>& step, const std::vector<std::int32_t>& label,
-                      std::int32_t l, std::vector<std::int8_t>& ahead,
-                      std::vector<std::int32_t>& stack) {
-  const auto n = static_cast<std::int32_t>(step.size());
-  constexpr std::int8_t kUnknown = -1, kOnStack = -2;
-  ahead.assign(n, kUnknown);
-  for (std::int32_t i = 0; i < n; ++i) {
-    if (ahead[i] != kUnknown) continue;
-    stack.clear();
-    for (std::int32_t j = i; j >= 0 && ahead[j] == kUnknown; j = step[j]) {
-      ahead[j] = kOnStack;
-      stack.push_back(j);
-    }
-    for (auto p = stack.rbegin(); p != stack.rend(); ++p) {
-      const std::int32_t next = step[*p];
-      ahead[*p] = next >= 0 && (label[next] == l || ahead[next] == 1) ? 1 : 0;
-    }
   }
 }
 

@@ -8,6 +8,8 @@
 #include <tuple>
 #include <utility>
 
+#include "line_walks.h"
+
 namespace dhfcast::detail {
 namespace {
 
@@ -19,29 +21,6 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // 11 parts where 0.1 keeps 9, both passing every check (without the rule: 9 parts, two of them
 // under 0.2 % of the volume, and no assembly order).
 constexpr double kMergeGapShare = 0.1;
-
-// Whether the line from node i along `step` meets label l (i's own) again after leaving it.
-bool leaves_and_meets_again(const std::vector<std::int32_t>& step, std::int32_t i, std::int32_t l,
-                            const std::vector<std::int32_t>& labels) {
-  bool left = false;
-  std::size_t walked = 0;
-  for (std::int32_t j = step[i]; j >= 0 && walked < step.size(); j = step[j], ++walked) {
-    if (labels[j] != l)
-      left = true;
-    else if (left)
-      return true;
-  }
-  return false;
-}
-
-// Whether the line from node i along `step` meets label l.
-bool meets(const std::vector<std::int32_t>& step, std::int32_t i, std::int32_t l,
-           const std::vector<std::int32_t>& labels) {
-  std::size_t walked = 0;
-  for (std::int32_t j = step[i]; j >= 0 && walked < step.size(); j = step[j], ++walked)
-    if (labels[j] == l) return true;
-  return false;
-}
 
 }  // namespace
 
@@ -150,12 +129,12 @@ bool PartReducer::opens_gaps(const std::vector<std::int32_t>& before,
     ++changed;
     const LineSteps& old_lines = problem_.line_steps(before[i]);
     const LineSteps& new_lines = problem_.line_steps(after[i]);
-    gaps_before += leaves_and_meets_again(old_lines.up, i, before[i], before) +
-                   leaves_and_meets_again(old_lines.down, i, before[i], before);
-    gaps_after += leaves_and_meets_again(new_lines.up, i, after[i], after) +
-                  leaves_and_meets_again(new_lines.down, i, after[i], after);
-    gaps_after +=
-        meets(old_lines.up, i, before[i], after) && meets(old_lines.down, i, before[i], after);
+    gaps_before += line_meets(old_lines.up, i, before[i], before, true) +
+                   line_meets(old_lines.down, i, before[i], before, true);
+    gaps_after += line_meets(new_lines.up, i, after[i], after, true) +
+                  line_meets(new_lines.down, i, after[i], after, true);
+    gaps_after += line_meets(old_lines.up, i, before[i], after, false) &&
+                  line_meets(old_lines.down, i, before[i], after, false);
   }
   return gaps_after > gaps_before + kMergeGapShare * changed;
 }
