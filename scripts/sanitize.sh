@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Builds dhfcast and its tests with AddressSanitizer and UndefinedBehaviorSanitizer (halting on
 # the first report) and runs the default test tier in that build, less the tests labelled
-# `repeats` (the same code many times over, run once by the tier's other tests) and `browser`
-# (Chromium's work, not dhfcast's).
+# `repeats` (the same code many times over, run once by the tier's other tests) and `external`
+# (an outside program's verdict on output that the tier's other tests make too: Chromium's, the
+# slicer's).
 #   scripts/sanitize.sh [ctest arguments...]
 # Environment: DHFCAST_SANITIZE_BUILD (default build-sanitize), DHFCAST_SANITIZE_JOBS (default 2).
 set -euo pipefail
@@ -18,4 +19,4 @@ cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
   -DDHFCAST_TEST_TIMEOUT_FACTOR=8 "${launcher[@]}" >/dev/null
 cmake --build "$build" -j"$jobs"
 
-ctest --test-dir "$build" -LE "extended|repeats|browser" -j"$jobs" --output-on-failure "$@"
+ctest --test-dir "$build" -LE "extended|repeats|external" -j"$jobs" --output-on-failure "$@"
