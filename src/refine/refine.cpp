@@ -149,13 +149,28 @@ std::vector<Vec3> removal_directions(const std::vector<Part>& parts,
   return out;
 }
 
-// Parts of a labeling: made manifold, extracted, their interfaces smoothed, cut from the solid
-// when asked, and ordered for assembly.
-PartsStage make_parts(const TriMesh& solid, const TetMesh& tets, std::vector<std::int32_t> label,
+// Orders stage.parts for assembly. A part leaves along its own +-d when it can, else along another
+// part's (interfaces follow them) or one of a coarse set of directions over the sphere. A move
+// counts as blocked when it goes deeper than epsilon / 2 into another part: half what `dhfcast
+// check` allows, as check draws other points of the surface. When no order exists with that
+// margin, the margin shrinks: an order closer to check's limit is still one that check can confirm.
+void plan_stage_assembly(PartsStage& stage, const RefineOptions& opts, double epsilon_mm,
+                         const std::vector<Vec3>& sphere_directions) {
+  const std::vector<Vec3> removal = removal_directions(stage.parts, sphere_directions);
+  for (double share : opts.assembly_margins) {
+    stage.assembly_tolerance_mm = share * epsilon_mm;
+    stage.assembly = plan_assembly(stage.parts, removal, stage.assembly_tolerance_mm);
+    if (stage.assembly.found) break;
+  }
+}
+
+// Parts of a labeling bounded by the tets: made manifold, extracted, their interfaces smoothed,
+// and ordered for assembly.
+PartsStage make_parts(const TetMesh& tets, std::vector<std::int32_t> label,
                       const std::vector<std::int32_t>& region, const std::vector<Vec3>& directions,
                       const AccessibilityField& access, const TetAllowsLabel& label_allows,
                       const RefineOptions& opts, double epsilon_mm,
-                      const std::vector<Vec3>& sphere_directions, bool exact) {
+                      const std::vector<Vec3>& sphere_directions) {
   PartsStage out;
   // A part whose tets meet only along an edge or at a vertex would touch itself there.
   out.manifold = make_parts_manifold(tets, label, region, label_allows);
@@ -171,18 +186,7 @@ PartsStage make_parts(const TriMesh& solid, const TetMesh& tets, std::vector<std
   smooth_interfaces(tets, out.parts, allows, opts.smoothing);
   out.smoothness = interface_smoothness(out.parts);
   out.outer_smoothness = outer_surface_smoothness(out.parts);
-  if (exact) out.solid_cut = cut_parts_from_solid(solid, out.parts);
-  // A part leaves along its own +-d when it can, else along another part's (interfaces follow
-  // them) or one of a coarse set of directions over the sphere. A move counts as blocked when it
-  // goes deeper than epsilon / 2 into another part: half what `dhfcast check` allows, as check
-  // draws other points of the surface. When no order exists with that margin, the margin
-  // shrinks: an order closer to check's limit is still one that check can confirm.
-  const std::vector<Vec3> removal = removal_directions(out.parts, sphere_directions);
-  for (double share : opts.assembly_margins) {
-    out.assembly_tolerance_mm = share * epsilon_mm;
-    out.assembly = plan_assembly(out.parts, removal, out.assembly_tolerance_mm);
-    if (out.assembly.found) break;
-  }
+  plan_stage_assembly(out, opts, epsilon_mm, sphere_directions);
   return out;
 }
 
@@ -224,7 +228,6 @@ std::vector<bool> blocked_parts(const AssemblyPlan& plan) {
 
 // What the parts stage works from.
 struct PartsContext {
-  const TriMesh& solid;
   const TetMesh& tets;
   const std::vector<Vec3>& directions;
   const AccessibilityField& access;
@@ -240,11 +243,11 @@ struct PartsContext {
   std::vector<Vec3> sphere = fibonacci_directions(opts.assembly_directions);
 
   // Parts whose outer surface is the tets' boundary: what candidates, cleared ways and filled
-  // gaps are compared on. With `exact`, cut from the solid: done once, for the labeling kept.
-  PartsStage make(const std::vector<std::int32_t>& label, const std::vector<std::int32_t>& region,
-                  bool exact = false) const {
-    return make_parts(solid, tets, label, region, directions, access, label_allows, opts,
-                      epsilon_mm, sphere, exact);
+  // gaps are compared on. Only the parts kept are cut from the solid.
+  PartsStage make(const std::vector<std::int32_t>& label,
+                  const std::vector<std::int32_t>& region) const {
+    return make_parts(tets, label, region, directions, access, label_allows, opts, epsilon_mm,
+                      sphere);
   }
 };
 
@@ -523,8 +526,7 @@ Refinement refine(const TriMesh& solid, const TetMesh& tets, const std::vector<V
   std::size_t competing = 0;
   const std::vector<std::size_t> ranked =
       rank_candidates(repaired, candidates, tets_volume, competing);
-  const PartsContext context{solid,
-                             tets,
+  const PartsContext context{tets,
                              directions,
                              access,
                              opts,
@@ -610,10 +612,8 @@ Refinement refine(const TriMesh& solid, const TetMesh& tets, const std::vector<V
   // this fails assembly), and took up to 7 times as long (rotor 1192 s against 166 s; hand at
   // 50 000 tets: parts 514 s against 123 s).
   if (opts.exact_outer_surface) {
-    ManifoldRepair manifold = std::move(stage.parts.manifold);  // the labeling is manifold now
-    const std::vector<std::int32_t> label = stage.parts.label;
-    stage.parts = context.make(label, repaired[best->repaired_index].region, true);
-    stage.parts.manifold = std::move(manifold);
+    stage.parts.solid_cut = cut_parts_from_solid(solid, stage.parts.parts);
+    plan_stage_assembly(stage.parts, opts, access_opts.epsilon_mm, context.sphere);
     best->gap_lines =
         count_gaps(dhf_gaps(stage.parts.parts, opts.gap_lines, access_opts.epsilon_mm));
   }
