@@ -231,6 +231,13 @@ int run_decompose(const CliOptions& cli) {
                  "once (%zu patches could not be mended: see carving.refused in "
                  "decomposition.json)\n",
                  d.carving.gap_lines_after, d.carving.refused.size());
+  // Such a part's outer surface is the tet mesh's boundary, within a tet of the input's.
+  for (std::size_t i = 0; i < d.solid_cut.problem.size(); ++i)
+    if (!d.solid_cut.problem[i].empty())
+      std::fprintf(stderr,
+                   "dhfcast: warning: part %zu was not cut from the input (%s): its outer surface "
+                   "is the tet mesh's, up to a tet away from the input's (try another --seed)\n",
+                   i, d.solid_cut.problem[i].c_str());
   const std::vector<std::int32_t> tiny = tiny_parts(d.parts, volume_mm3);
   for (const Part& p : d.parts) {
     if (std::find(tiny.begin(), tiny.end(), p.id) == tiny.end()) continue;

@@ -430,33 +430,6 @@ TEST(AbsorbSandwichedTets, TetsTheDirectionDoesNotAllowStayAndAreCounted) {
   EXPECT_EQ(label, before);
 }
 
-// The top half of a box carries a direction that does not allow a sixth of it. When another
-// direction allows all of it, the part takes that one; when another only allows a little more,
-// the part keeps its own.
-TEST(AbsorbSandwichedTets, PartTakesTheDirectionThatAllowsItWhenItsOwnFallsWellShort) {
-  const Grid g = make_grid(6, 6, 6, 10.0, 0.05);
-  const std::vector<Vec3> dirs{kUp, kSide, Vec3(0.6, 0.5, 0.62).normalized()};
-  const auto cell_x = per_cell(g, [](const Cell& c) { return c[0]; });
-  const auto cell_y = per_cell(g, [](const Cell& c) { return c[1]; });
-  const auto start = per_cell(g, [](const Cell& c) { return c[2] < 3 ? 0 : 1; });
-  for (const bool third_allows_all : {true, false}) {
-    const TetAllowsLabel allows = [&](std::int32_t t, std::int32_t, std::int32_t l) {
-      if (start[t] == 0) return l == 0;
-      if (l == 1) return cell_x[t] != 0;
-      // Not at 5 of the 6 cells of a column of cells: a sixth less than label 1 leaves out.
-      return l == 2 && (third_allows_all || cell_x[t] != 0 || cell_y[t] == 5);
-    };
-    auto label = start;
-    const SandwichRepair repair = absorb_sandwiched_tets(g.mesh, label, zeros(g), dirs, allows);
-    EXPECT_TRUE(repair.converged);
-    EXPECT_EQ(repair.parts, 2);
-    EXPECT_EQ(repair.redirected_parts, third_allows_all ? 1 : 0);
-    for (std::size_t t = 0; t < label.size(); ++t)
-      EXPECT_EQ(label[t], start[t] == 0 ? 0 : third_allows_all ? 2 : 1) << "tet " << t;
-    EXPECT_EQ(repair.forced_tets, 0);  // no tet moved to a label that does not allow it
-  }
-}
-
 TEST(AbsorbSandwichedTets, OtherRegionsAndNoRoundsLeaveLabelsAlone) {
   const Grid g = make_grid(6, 6, 6, 10.0, 0.05);
   auto label = per_cell(g, tongue);

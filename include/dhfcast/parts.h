@@ -77,9 +77,6 @@ struct SandwichRepair {
   // Pieces a part fell into when it lost tets that went whole to a neighbour, and their tets;
   // of those, the tets the neighbour's direction does not allow (tiny pieces only).
   std::int32_t merged_pieces = 0, merged_tets = 0, forced_tets = 0;
-  // Parts that took another direction, one that allows more of their volume (see
-  // absorb_sandwiched_tets()).
-  std::int32_t redirected_parts = 0;
   std::vector<SandwichMove> moves;  // summed by (region, from_label, to_label), in that order
 };
 
@@ -125,9 +122,6 @@ using TetAllowsLabel =
 // the group and both stay connected; rounds repeat until no group moves (at most
 // opts.max_rounds). The polished labeling is kept when its worst_share is no larger and it has
 // no more parts.
-// Afterwards, a part whose direction does not allow all of its volume (pieces forced into it)
-// takes the direction of its region that allows the most, when that leaves less than half as
-// much not allowed, and the parts settle and are polished again from there, as above.
 // Only tets of the same region are exchanged.
 // Deterministic: the result does not depend on the thread count.
 // Pre: tets has adjacency; label/region as for extract_parts(). Throws Error{InvalidOptions}

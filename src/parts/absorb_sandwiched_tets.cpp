@@ -812,36 +812,6 @@ void settle_and_polish(Parts& s, std::vector<std::int32_t>& label, const Sandwic
   }
 }
 
-// Gives each part whose direction does not allow all of its volume the direction of its region
-// that allows the most, when that leaves less than half as much not allowed (a part keeps the
-// segmentation's choice for a small gain). Returns how many parts changed direction.
-std::int32_t redirect_parts(Parts& s, std::vector<std::int32_t>& label) {
-  const std::int32_t num_parts = s.take_parts(label, true);
-  std::vector<std::vector<std::int32_t>> members(num_parts);
-  for (std::int32_t t = 0; t < static_cast<std::int32_t>(label.size()); ++t)
-    members[s.owner[t]].push_back(t);
-  std::int32_t changed = 0;
-  for (std::int32_t p = 0; p < num_parts; ++p) {
-    const std::int32_t r = s.region_of[p];
-    auto not_allowed = [&](std::int32_t l) {
-      double v = 0.0;
-      for (std::int32_t t : members[p])
-        if (!s.allows(t, r, l)) v += s.volume[t];
-      return v;
-    };
-    const double own = not_allowed(s.label_of[p]);
-    if (own == 0.0) continue;
-    std::vector<double> left(s.directions.size());
-    tbb::parallel_for(std::size_t{0}, left.size(),
-                      [&](std::size_t l) { left[l] = not_allowed(static_cast<std::int32_t>(l)); });
-    const auto best = std::min_element(left.begin(), left.end());
-    if (*best >= 0.5 * own) continue;
-    for (std::int32_t t : members[p]) label[t] = static_cast<std::int32_t>(best - left.begin());
-    ++changed;
-  }
-  return changed;
-}
-
 void check_labeling(const TetMesh& tets, const std::vector<std::int32_t>& label,
                     const std::vector<std::int32_t>& region, const std::vector<Vec3>& directions) {
   if (tets.neighbors.size() != tets.tets.size() || label.size() != tets.tets.size() ||
@@ -877,18 +847,7 @@ SandwichRepair absorb_sandwiched_tets(const TetMesh& tets, std::vector<std::int3
   const std::vector<std::int32_t> initial = label;
   SandwichRepair repair;
   Sandwiches best = count_sandwiched(s, label);
-  if (opts.max_rounds > 0) {
-    settle_and_polish(s, label, opts, best, repair);
-    // Pieces forced into a part can leave it with volume its direction does not allow, which
-    // another direction does: such a part takes the direction that allows most of its volume,
-    // and the parts settle again along the directions now used.
-    repair.redirected_parts = redirect_parts(s, label);
-    if (repair.redirected_parts > 0) {
-      s.prepare_lines(label);
-      best = count_sandwiched(s, label);
-      settle_and_polish(s, label, opts, best, repair);
-    }
-  }
+  if (opts.max_rounds > 0) settle_and_polish(s, label, opts, best, repair);
   repair.stuck_tets = best.tets;
   repair.worst_share = best.worst_share;
   repair.parts = best.parts;

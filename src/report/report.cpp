@@ -200,7 +200,6 @@ std::string decomposition_json(const InputInfo& input, const DecomposeOptions& o
                           {"merged_pieces", d.sandwich.merged_pieces},
                           {"merged_tets", d.sandwich.merged_tets},
                           {"forced_tets", d.sandwich.forced_tets},
-                          {"redirected_parts", d.sandwich.redirected_parts},
                           {"moves", moves}};
   ordered_json clearings = ordered_json::array();
   for (const WayClearing& c : d.way_clearings)
