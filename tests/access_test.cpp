@@ -329,11 +329,11 @@ TEST(DistanceToInfeasible, FollowsTheChainOfBarycentres) {
   for (std::int32_t t = 0; t < 20; ++t) ASSERT_GT(std::abs(tet_volume(chain, t)), 1e-9);
   DirectionBits bits(20, 2);
   for (std::int32_t t = 0; t < 20; ++t) bits.set(t, 1, t != 3 && t != 15);
-  const std::vector<float> d = distance_to_infeasible(chain, bits, 1, 100.0);
+  const std::vector<float> d = InfeasibleDistance(chain)(bits, 1, 100.0);
   ASSERT_EQ(d.size(), 20u);
   for (int t = 0; t < 20; ++t)
     EXPECT_NEAR(d[t], 2.0 * std::min(std::abs(t - 3), std::abs(t - 15)), 1e-4) << "tet " << t;
-  const std::vector<float> capped = distance_to_infeasible(chain, bits, 1, 5.0);
+  const std::vector<float> capped = InfeasibleDistance(chain)(bits, 1, 5.0);
   for (int t = 0; t < 20; ++t)
     EXPECT_NEAR(capped[t], std::min(5.0, 2.0 * std::min(std::abs(t - 3), std::abs(t - 15))), 1e-4);
 }
@@ -342,7 +342,7 @@ TEST(DistanceToInfeasible, EverythingFeasibleGivesTheCap) {
   const TetMesh chain = tet_chain(10, 1.0);
   DirectionBits bits(10, 1);
   for (std::int32_t t = 0; t < 10; ++t) bits.set(t, 0, true);
-  for (float v : distance_to_infeasible(chain, bits, 0, 7.5)) EXPECT_EQ(v, 7.5f);
+  for (float v : InfeasibleDistance(chain)(bits, 0, 7.5)) EXPECT_EQ(v, 7.5f);
 }
 
 // --- options, progress ---

@@ -273,7 +273,7 @@ TEST(Segment, AThirdLabelThatOnlyLowersTheDataCostIsSharedOut) {
   p.num_labels = 3;
   p.data.assign(3 * static_cast<std::size_t>(p.num_nodes), kInf);
   for (int d = 0; d < 3; ++d) {
-    const std::vector<float> dist = distance_to_infeasible(bar, f.feasible, d, 4.0 * opts.c_mm);
+    const std::vector<float> dist = InfeasibleDistance(bar)(f.feasible, d, 4.0 * opts.c_mm);
     for (std::int32_t t = 0; t < p.num_nodes; ++t)
       if (f.feasible.get(t, d))
         p.data[d * p.num_nodes + t] =

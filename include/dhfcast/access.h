@@ -2,6 +2,7 @@
 // distance to the infeasible region (§4.2.1) and seam visibility (§4.2.2).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -81,8 +82,18 @@ AccessibilityField compute_accessibility(const TriMesh& surface, const TetMesh& 
 // dist_d(t) for one direction d (paper §4.2.1): for every tet, the distance (mm) from its
 // barycentre to the nearest barycentre of a tet that is not feasible for d, measured along
 // paths through face-adjacent tets. Capped at max_mm (tets farther away, or with no infeasible
-// tet at all, get max_mm).
-std::vector<float> distance_to_infeasible(const TetMesh& tets, const DirectionBits& feasible,
-                                          std::int32_t direction, double max_mm);
+// tet at all, get max_mm). The steps between adjacent barycentres are measured once, for every
+// direction asked (the segmentation asks for hundreds).
+class InfeasibleDistance {
+ public:
+  // Keeps a reference to `tets`, which must have adjacency and outlive it.
+  explicit InfeasibleDistance(const TetMesh& tets);
+  std::vector<float> operator()(const DirectionBits& feasible, std::int32_t direction,
+                                double max_mm) const;
+
+ private:
+  const TetMesh& tets_;
+  std::vector<std::array<double, 4>> step_mm_;  // per tet and face: to that neighbour's barycentre
+};
 
 }  // namespace dhfcast

@@ -291,19 +291,29 @@ AccessibilityField compute_accessibility(const TriMesh& surface, const TetMesh& 
   return field;
 }
 
-std::vector<float> distance_to_infeasible(const TetMesh& tets, const DirectionBits& feasible,
-                                          std::int32_t direction, double max_mm) {
-  const std::int32_t n = static_cast<std::int32_t>(tets.tets.size());
-  DHF_ASSERT(direction >= 0 && direction < feasible.num_directions(), "direction out of range");
+InfeasibleDistance::InfeasibleDistance(const TetMesh& tets) : tets_(tets) {
   DHF_ASSERT(tets.neighbors.size() == tets.tets.size(), "tet adjacency not built");
-  std::vector<float> dist(n, static_cast<float>(max_mm));
-  if (n == 0) return dist;
+  const std::size_t n = tets.tets.size();
   std::vector<Vec3> centre(n);
-  for (std::int32_t t = 0; t < n; ++t) {
+  for (std::size_t t = 0; t < n; ++t) {
     const Tet& k = tets.tets[t];
     centre[t] = 0.25 * (tets.vertices[k[0]] + tets.vertices[k[1]] + tets.vertices[k[2]] +
                         tets.vertices[k[3]]);
   }
+  step_mm_.resize(n);
+  for (std::size_t t = 0; t < n; ++t)
+    for (int f = 0; f < 4; ++f) {
+      const std::int32_t u = tets.neighbors[t][f];
+      step_mm_[t][f] = u >= 0 ? (centre[u] - centre[t]).norm() : 0.0;
+    }
+}
+
+std::vector<float> InfeasibleDistance::operator()(const DirectionBits& feasible,
+                                                  std::int32_t direction, double max_mm) const {
+  const auto n = static_cast<std::int32_t>(tets_.tets.size());
+  DHF_ASSERT(direction >= 0 && direction < feasible.num_directions(), "direction out of range");
+  std::vector<float> dist(n, static_cast<float>(max_mm));
+  if (n == 0) return dist;
   // Multi-source Dijkstra in double (float only for the result), lazy deletion.
   std::vector<double> best(n, max_mm);
   using Item = std::pair<double, std::int32_t>;
@@ -320,9 +330,10 @@ std::vector<float> distance_to_infeasible(const TetMesh& tets, const DirectionBi
     const auto [d, t] = heap.top();
     heap.pop();
     if (d > best[t]) continue;
-    for (std::int32_t u : tets.neighbors[t]) {
+    for (int f = 0; f < 4; ++f) {
+      const std::int32_t u = tets_.neighbors[t][f];
       if (u < 0) continue;
-      const double du = d + (centre[u] - centre[t]).norm();
+      const double du = d + step_mm_[t][f];
       if (du < best[u]) {
         best[u] = du;
         heap.emplace(du, u);

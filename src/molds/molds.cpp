@@ -436,7 +436,7 @@ Mold try_mold(const Part& part, const MoldOptions& opts, int attempt) {
   const double hair = 1e-6 * std::max(diag, 1.0);
 
   // --- 1. face split and parting line ---
-  const LineIndex index(cavity);
+  const LineIndex index(cavity, d);
   const FaceSplit split = split_faces(cavity, index, d, opts.epsilon_mm);
   mold.split = split.stats;
 

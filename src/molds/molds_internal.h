@@ -19,7 +19,8 @@ inline double to_float(double x) {
   return f;
 }
 
-// --- cgal_rays.cpp: lines against one closed mesh (CGAL AABB tree, exact predicates) ---
+// --- cgal_rays.cpp: lines against one closed mesh (CGAL AABB tree or a grid along one axis,
+// exact predicates) ---
 
 // A parameter interval [begin, end] along a line origin + t * dir.
 struct LineInterval {
@@ -28,7 +29,10 @@ struct LineInterval {
 
 class LineIndex {
  public:
-  explicit LineIndex(const TriMesh& mesh);
+  // Lines along +-axis (a unit vector; zero: none), most of the queries, find their triangles
+  // in a grid of the mesh projected across it instead of the tree: the same triangles, as
+  // both end with the same exact test.
+  explicit LineIndex(const TriMesh& mesh, const Vec3& axis = Vec3::Zero());
   ~LineIndex();
   LineIndex(LineIndex&&) noexcept;
   LineIndex& operator=(LineIndex&&) noexcept;

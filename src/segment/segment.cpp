@@ -291,11 +291,11 @@ Labeling segment(const TetMesh& tets, const AccessibilityField& field,
   problem.data.assign(static_cast<std::size_t>(num_nodes) * num_labels,
                       std::numeric_limits<double>::infinity());
   const double two_c2 = 2.0 * opts.c_mm * opts.c_mm;
+  const InfeasibleDistance distance_to_infeasible(tets);
   tbb::parallel_for(std::int32_t{0}, num_labels, [&](std::int32_t l) {
     const std::int32_t d = dirs[l];
     // Beyond 4c the Gaussian is ~0 (paper §4.2.1): the distance is capped there.
-    const std::vector<float> dist_mm =
-        distance_to_infeasible(tets, field.feasible, d, 4.0 * opts.c_mm);
+    const std::vector<float> dist_mm = distance_to_infeasible(field.feasible, d, 4.0 * opts.c_mm);
     double* data = problem.data.data() + static_cast<std::size_t>(l) * num_nodes;
     for (std::int32_t n = 0; n < num_nodes; ++n) {
       const std::int32_t t = tet_of[n];

@@ -102,7 +102,7 @@ ordered_json encoded_mesh(const TriMesh& mesh) {
     }
   uLongf size = compressBound(raw.size());
   std::vector<unsigned char> packed(size);
-  if (compress2(packed.data(), &size, raw.data(), raw.size(), Z_BEST_COMPRESSION) != Z_OK)
+  if (compress2(packed.data(), &size, raw.data(), raw.size(), Z_DEFAULT_COMPRESSION) != Z_OK)
     throw Error(ErrorCode::Internal, "zlib could not compress a mesh for report.html");
   packed.resize(size);
   return {{"vertices", mesh.vertices.size()},
