@@ -13,6 +13,7 @@ namespace dhfcast::detail {
 
 class OuterColumns {
  public:
+  OuterColumns() = default;  // meets nothing
   // triangles[i] (corners in `position`) is an outer triangle of part owner[i]; d is unit.
   OuterColumns(const std::vector<Vec3>& position, const std::vector<Tri>& triangles,
                const std::vector<std::int32_t>& owner, const Vec3& d);

@@ -267,9 +267,10 @@ void smooth_interfaces(const TetMesh& tets, std::vector<Part>& parts, const TetA
     }
   std::vector<detail::OuterColumns> columns;
   auto build_columns = [&] {
-    columns.clear();
-    for (const Vec3& d : column_direction)
-      columns.emplace_back(position, outer, owner, d.normalized());
+    columns.assign(column_direction.size(), {});
+    tbb::parallel_for(std::size_t{0}, columns.size(), [&](std::size_t i) {
+      columns[i] = detail::OuterColumns(position, outer, owner, column_direction[i].normalized());
+    });
   };
   auto infeasible_for = [&](std::int32_t p, const Vec3& x) {
     const auto [up, down] = columns[column_of[p]].ends(x);
