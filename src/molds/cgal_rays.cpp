@@ -11,6 +11,7 @@
 #include <cmath>
 #include <iterator>
 
+#include "dhfcast/projected_grid.h"
 #include "molds_internal.h"
 
 namespace dhfcast::detail {
@@ -30,70 +31,11 @@ struct LineIndex::Impl {
   std::vector<Vec3> first_vertex;  // parallel to triangles
   Tree tree;
   double same_point_mm = 0.0;  // crossings closer than this are one
-  // The grid across `axis` (when set): (x, y) = (p.u, p.v), cells of side 1 / inv_cell from
-  // (x0, y0); the triangles whose projected box, grown by `slack`, meets cell c are
-  // cell_tris[cell_begin[c] .. cell_begin[c + 1]). The tree answers a line along the axis
-  // with the triangles it meets by the exact test, and with a box it meets first: a triangle
-  // of the tree's answer has the line's point of the plane within its projected box (up to
-  // rounding, which the slack covers), so the grid's cell lists it too.
+  // Lines along +-axis (when set) read the triangles of their point's cell of `grid`, whose
+  // boxes are grown by far more than rounding: every triangle the exact test accepts is there.
   Vec3 axis = Vec3::Zero(), u, v;
-  double x0 = 0, y0 = 0, inv_cell = 1, slack = 0;
-  std::int32_t nx = 0, ny = 0;
-  std::vector<std::int32_t> cell_begin, cell_tris;
-
-  std::int64_t cell_of(double x, double y) const {
-    const double fx = (x - x0) * inv_cell, fy = (y - y0) * inv_cell;
-    if (!(fx >= 0 && fy >= 0 && fx < nx && fy < ny)) return -1;
-    return static_cast<std::int64_t>(fy) * nx + static_cast<std::int64_t>(fx);
-  }
-  void bin(const Vec3& along);
+  ProjectedGrid grid;
 };
-
-void LineIndex::Impl::bin(const Vec3& along) {
-  axis = along;
-  u = along.unitOrthogonal();
-  v = along.cross(u);
-  const std::size_t n = triangles.size();
-  std::vector<std::array<double, 4>> box(n);  // x min, x max, y min, y max
-  double xmin = INFINITY, xmax = -INFINITY, ymin = INFINITY, ymax = -INFINITY;
-  for (std::size_t i = 0; i < n; ++i) {
-    box[i] = {INFINITY, -INFINITY, INFINITY, -INFINITY};
-    for (int k = 0; k < 3; ++k) {
-      const K::Point_3& p = triangles[i].vertex(k);
-      const Vec3 q(p.x(), p.y(), p.z());
-      box[i][0] = std::min(box[i][0], q.dot(u)), box[i][1] = std::max(box[i][1], q.dot(u));
-      box[i][2] = std::min(box[i][2], q.dot(v)), box[i][3] = std::max(box[i][3], q.dot(v));
-    }
-    xmin = std::min(xmin, box[i][0]), xmax = std::max(xmax, box[i][1]);
-    ymin = std::min(ymin, box[i][2]), ymax = std::max(ymax, box[i][3]);
-  }
-  if (n == 0) return;
-  // Rounding of the projections is a few ulps of the coordinates; a generous multiple of it.
-  slack = 1e-9 * std::max({std::abs(xmin), std::abs(xmax), std::abs(ymin), std::abs(ymax), 1.0});
-  // About two triangles per cell.
-  const double side =
-      std::max(std::sqrt((xmax - xmin) * (ymax - ymin) / (0.5 * static_cast<double>(n))), 1e-9);
-  inv_cell = 1.0 / side;
-  x0 = xmin - 2 * slack, y0 = ymin - 2 * slack;
-  nx = std::max(1, static_cast<std::int32_t>(std::ceil((xmax - x0 + 2 * slack) * inv_cell)));
-  ny = std::max(1, static_cast<std::int32_t>(std::ceil((ymax - y0 + 2 * slack) * inv_cell)));
-  const auto cells = [&](std::size_t i, auto&& f) {
-    const auto at = [&](double w, double w0, std::int32_t m) {
-      return std::clamp(static_cast<std::int32_t>((w - w0) * inv_cell), 0, m - 1);
-    };
-    const std::int32_t i0 = at(box[i][0] - slack, x0, nx), i1 = at(box[i][1] + slack, x0, nx);
-    const std::int32_t j0 = at(box[i][2] - slack, y0, ny), j1 = at(box[i][3] + slack, y0, ny);
-    for (std::int32_t j = j0; j <= j1; ++j)
-      for (std::int32_t k = i0; k <= i1; ++k) f(static_cast<std::size_t>(j) * nx + k);
-  };
-  cell_begin.assign(static_cast<std::size_t>(nx) * ny + 1, 0);
-  for (std::size_t i = 0; i < n; ++i) cells(i, [&](std::size_t c) { ++cell_begin[c + 1]; });
-  for (std::size_t c = 1; c < cell_begin.size(); ++c) cell_begin[c] += cell_begin[c - 1];
-  cell_tris.resize(cell_begin.back());
-  std::vector<std::int32_t> next(cell_begin.begin(), cell_begin.end() - 1);
-  for (std::size_t i = 0; i < n; ++i)
-    cells(i, [&](std::size_t c) { cell_tris[next[c]++] = static_cast<std::int32_t>(i); });
-}
 
 LineIndex::LineIndex(const TriMesh& mesh, const Vec3& axis) : impl_(std::make_unique<Impl>()) {
   Impl& s = *impl_;
@@ -110,7 +52,25 @@ LineIndex::LineIndex(const TriMesh& mesh, const Vec3& axis) : impl_(std::make_un
   // Both search structures now, so that concurrent queries only read.
   s.tree.build();
   s.tree.accelerate_distance_queries();
-  if (axis != Vec3::Zero()) s.bin(axis);
+  if (axis != Vec3::Zero()) {
+    s.axis = axis;
+    const auto [u, v] = ProjectedGrid::across(axis);
+    s.u = u, s.v = v;
+    std::vector<std::array<double, 4>> boxes;
+    double largest = 1.0;
+    for (const K::Triangle_3& tri : s.triangles) {
+      std::array<double, 4>& b = boxes.emplace_back(
+          std::array<double, 4>{INFINITY, -INFINITY, INFINITY, -INFINITY});
+      for (int k = 0; k < 3; ++k) {
+        const Vec3 p(tri.vertex(k).x(), tri.vertex(k).y(), tri.vertex(k).z());
+        b[0] = std::min(b[0], p.dot(s.u)), b[1] = std::max(b[1], p.dot(s.u));
+        b[2] = std::min(b[2], p.dot(s.v)), b[3] = std::max(b[3], p.dot(s.v));
+      }
+      largest = std::max({largest, std::abs(b[0]), std::abs(b[1]), std::abs(b[2]), std::abs(b[3])});
+    }
+    // Rounding of the projections is a few ulps of the coordinates: a generous multiple of it.
+    s.grid = ProjectedGrid(boxes, 1e-9 * largest);
+  }
 }
 
 LineIndex::~LineIndex() = default;
@@ -122,13 +82,11 @@ std::optional<std::vector<LineInterval>> LineIndex::line_intervals(const Vec3& o
   const Impl& s = *impl_;
   const K::Line_3 line(point_of(origin), point_of(origin + dir));
   std::vector<Triangles::const_iterator> hit;
-  if (s.nx > 0 && (dir == s.axis || dir == -s.axis)) {
-    const std::int64_t c = s.cell_of(origin.dot(s.u), origin.dot(s.v));
-    if (c >= 0)
-      for (std::int32_t k = s.cell_begin[c]; k < s.cell_begin[c + 1]; ++k) {
-        const auto it = s.triangles.cbegin() + s.cell_tris[k];
-        if (CGAL::do_intersect(line, *it)) hit.push_back(it);
-      }
+  if (s.axis != Vec3::Zero() && (dir == s.axis || dir == -s.axis)) {
+    for (const std::int32_t k : s.grid.at(origin.dot(s.u), origin.dot(s.v))) {
+      const auto it = s.triangles.cbegin() + k;
+      if (CGAL::do_intersect(line, *it)) hit.push_back(it);
+    }
   } else {
     s.tree.all_intersected_primitives(line, std::back_inserter(hit));
   }

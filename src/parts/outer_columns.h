@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "dhfcast/projected_grid.h"
 #include "dhfcast/types.h"
 
 namespace dhfcast::detail {
@@ -25,12 +26,10 @@ class OuterColumns {
 
  private:
   Vec3 d_, u_, w_;
-  double u0_ = 0, w0_ = 0, cell_ = 1;
-  std::int32_t nu_ = 1, nw_ = 1;
-  std::vector<std::int32_t> cell_begin_, cell_triangles_;  // triangles per grid cell (CSR)
+  ProjectedGrid grid_;  // of flat_
   struct Flat {
-    Vec3 a, n;                         // a corner and the (unnormalized) normal
-    double au, aw, bu, bw, cu, cw;     // projected corners
+    Vec3 a, n;                      // a corner and the (unnormalized) normal
+    double au, aw, bu, bw, cu, cw;  // projected corners
     std::int32_t owner;
   };
   std::vector<Flat> flat_;
